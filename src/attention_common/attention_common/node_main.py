@@ -1,0 +1,39 @@
+"""The Jazzy ``main()`` every node of the graph shares.
+
+``rclpy.init``, build the node, spin, and on Ctrl-C / SIGINT / SIGTERM destroy the node and shut
+down cleanly with exit code 0. A node that cannot start (a missing template file, say) raises
+``StartupError`` from its constructor: the message is printed once, plainly, and the exit code
+is 1.
+"""
+
+import sys
+from typing import Callable, Optional
+
+import rclpy
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+
+
+class StartupError(RuntimeError):
+    """A node cannot start; the message says why and what to do."""
+
+
+def run_node(node_factory: Callable[[], object], args=None,
+             executor_factory: Optional[Callable[[], object]] = None) -> int:
+    """Run one node until shutdown; return the process exit code."""
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = node_factory()
+        executor = (executor_factory or SingleThreadedExecutor)()
+        executor.add_node(node)
+        executor.spin()
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except StartupError as error:
+        sys.stderr.write(f'[startup error] {error}\n')
+        return 1
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0

@@ -1,0 +1,40 @@
+"""QoS profiles of the graph, chosen on purpose and named once.
+
+- Frames and actions are RELIABLE: in lockstep the env waits for the action that answers each
+  observation, so a lost frame would stall a step until ``action_timeout``.
+- A person's words (``utterance``, ``feedback``) are RELIABLE and VOLATILE, which is exactly what
+  ``ros2 topic pub`` offers by default; a deep history keeps bursts.
+- Status and metrics are for viewers: reliable, shallow.
+- ``/clock`` follows rclpy's own time source (best-effort subscriber, depth 1); a reliable
+  publisher serves both kinds of subscriber.
+"""
+
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+
+def _reliable(depth: int) -> QoSProfile:
+    return QoSProfile(
+        history=HistoryPolicy.KEEP_LAST,
+        depth=depth,
+        reliability=ReliabilityPolicy.RELIABLE,
+        durability=DurabilityPolicy.VOLATILE,
+    )
+
+
+FRAMES = _reliable(10)
+"""observation, saliency, saliency_mask."""
+
+ACTIONS = _reliable(10)
+"""action (sensor_msgs/Joy)."""
+
+STEP_DATA = _reliable(50)
+"""agent_position, env_status: one small message per step; a burst must not be lost."""
+
+HUMAN = _reliable(100)
+"""utterance, feedback and their stamped companions: a person's words are never dropped."""
+
+METRICS = _reliable(10)
+"""metrics."""
+
+CLOCK = _reliable(1)
+"""/clock publisher (rclpy's time source subscribes best-effort, depth 1)."""

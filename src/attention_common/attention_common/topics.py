@@ -1,0 +1,21 @@
+"""Topic names of the graph, in one place.
+
+Names are relative, so a namespace (``--ros-args -r __ns:=/trial3``) or a remap moves them.
+Only ``/clock`` is absolute: ROS 2 time sources listen there.
+"""
+
+OBSERVATION = 'observation'          # sensor_msgs/Image rgb8 210x160, env -> saliency, tamer
+AGENT_POSITION = 'agent_position'    # geometry_msgs/PointStamped x, y, z=room, env -> feedback
+ACTION = 'action'                    # sensor_msgs/Joy stamped with the observation it answers
+ENV_STATUS = 'env_status'            # diagnostic_msgs/DiagnosticArray, one per step (reward, lives...)
+CLOCK = '/clock'                     # rosgraph_msgs/Clock, simulation time, env -> all
+
+UTTERANCE = 'utterance'              # std_msgs/String, feedback node or a person
+UTTERANCE_STAMPED = 'utterance_stamped'  # diagnostic_msgs/DiagnosticArray, synthetic trainer
+FEEDBACK = 'feedback'                # std_msgs/Float32 scalar h, feedback node or a person
+FEEDBACK_STAMPED = 'feedback_stamped'    # geometry_msgs/Vector3Stamped, synthetic trainer
+
+SALIENCY = 'saliency'                # sensor_msgs/Image rgb8, same stamp as its observation
+SALIENCY_MASK = 'saliency_mask'      # sensor_msgs/Image mono8 debug view of the mask
+
+METRICS = 'metrics'                  # diagnostic_msgs/DiagnosticArray, learner metrics

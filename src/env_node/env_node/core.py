@@ -1,0 +1,164 @@
+"""Montezuma's Revenge, Room 1, as a plain Python object (no rclpy).
+
+Wraps ``ALE/MontezumaRevenge-v5`` (gymnasium + ale-py) and adds what the study needs: agent
+position, room, lives and key read from RAM; random warm-up steps at the start of a trial; the
+episode ends on game over or when the agent leaves the start room; simulation time counted in
+emulator frames (60 Hz), so that seconds mean the same in lockstep and real time.
+"""
+
+from dataclasses import dataclass
+from typing import NamedTuple, Optional
+
+import ale_py
+import gymnasium as gym
+import numpy as np
+
+from attention_common.joy_actions import NUM_ACTIONS
+from attention_common.stamps import frames_to_ns
+
+gym.register_envs(ale_py)
+
+# RAM addresses (checked against rendered frames; see tests/test_env_core.py).
+RAM_X, RAM_Y, RAM_ROOM, RAM_LIVES, RAM_INVENTORY = 42, 43, 3, 58, 65
+KEY_BIT = 0x02  # inventory bit set while the agent carries the key
+
+FRAME_HEIGHT, FRAME_WIDTH = 210, 160
+
+
+@dataclass
+class EnvConfig:
+    """Parameters of the environment; ROS parameters of env_node carry the same names."""
+
+    env_id: str = 'ALE/MontezumaRevenge-v5'
+    """Gymnasium id; ale-py ships the ROM."""
+    frameskip: int = 4
+    """Emulator frames per agent step (the action is repeated)."""
+    sticky_actions: float = 0.0
+    """ALE repeat_action_probability; 0 makes a study reproducible."""
+    seed: int = 0
+    """Seeds the emulator and the warm-up actions."""
+    warmup_steps: int = 100
+    """Random steps taken at the start of a trial, before the agent acts."""
+    start_room: int = 1
+    """The episode ends when the agent leaves this room (RAM room number; Room 1 is 1)."""
+    end_on_room_exit: bool = True
+    """End the episode (truncated) when the agent leaves ``start_room``."""
+    end_on_life_loss: bool = False
+    """End the episode at every life lost (default: play on until game over)."""
+
+
+class RamState(NamedTuple):
+    """What the study reads from the Atari's RAM."""
+
+    x: int
+    y: int
+    room: int
+    lives: int
+    has_key: bool
+
+
+class Step(NamedTuple):
+    """One environment step (or a reset) as the node publishes it."""
+
+    observation: np.ndarray
+    """RGB frame, (210, 160, 3) uint8."""
+    state: RamState
+    reward: float
+    terminated: bool
+    """Game over (or a life lost, with ``end_on_life_loss``)."""
+    truncated: bool
+    """The agent left the start room."""
+    life_lost: bool
+    episode: int
+    episode_step: int
+    agent_step: int
+    """Steps the agent has taken in this trial (warm-up not counted)."""
+    sim_time_ns: int
+    """Simulation time: emulator frames since the trial began, at 60 Hz."""
+
+    @property
+    def done(self) -> bool:
+        return self.terminated or self.truncated
+
+
+def read_ram_state(ram: np.ndarray) -> RamState:
+    return RamState(x=int(ram[RAM_X]), y=int(ram[RAM_Y]), room=int(ram[RAM_ROOM]),
+                    lives=int(ram[RAM_LIVES]), has_key=bool(ram[RAM_INVENTORY] & KEY_BIT))
+
+
+class MontezumaEnv:
+    """The game, stepped by action index; call ``reset`` once, then ``step``."""
+
+    def __init__(self, config: Optional[EnvConfig] = None):
+        self.config = config or EnvConfig()
+        if self.config.frameskip < 1:
+            raise ValueError(f'frameskip must be >= 1, got {self.config.frameskip}')
+        if not 0.0 <= self.config.sticky_actions <= 1.0:
+            raise ValueError(f'sticky_actions must be in [0, 1], got {self.config.sticky_actions}')
+        self._env = gym.make(self.config.env_id, frameskip=self.config.frameskip,
+                             repeat_action_probability=self.config.sticky_actions,
+                             full_action_space=True)
+        self._rng = np.random.default_rng(self.config.seed)
+        self._frames = 0
+        self._episode = -1
+        self._episode_step = 0
+        self._agent_step = 0
+        self._lives = 0
+        self._seeded = False
+
+    @property
+    def ale(self):
+        return self._env.unwrapped.ale
+
+    def ram_state(self) -> RamState:
+        return read_ram_state(self.ale.getRAM())
+
+    def reset(self) -> Step:
+        """Start a new episode (the first reset seeds the emulator)."""
+        seed = None if self._seeded else self.config.seed
+        observation, info = self._env.reset(seed=seed)
+        self._seeded = True
+        self._episode += 1
+        self._episode_step = 0
+        self._frames += self.config.frameskip  # keeps stamps strictly increasing
+        state = self.ram_state()
+        self._lives = state.lives
+        return self._make_step(observation, state, 0.0, False, False, False)
+
+    def warm_up(self) -> Step:
+        """Take ``warmup_steps`` random actions (seeded); return the step the agent starts from."""
+        step = self.reset() if self._episode < 0 else None
+        for _ in range(self.config.warmup_steps):
+            step = self._advance(int(self._rng.integers(NUM_ACTIONS)))
+            if step.done:
+                step = self.reset()
+        return step if step is not None else self.reset()
+
+    def step(self, action: int) -> Step:
+        """Apply one agent action; the caller resets after a step that is ``done``."""
+        if not 0 <= int(action) < NUM_ACTIONS:
+            raise ValueError(f'action {action} is out of range 0..{NUM_ACTIONS - 1}')
+        self._agent_step += 1
+        return self._advance(int(action))
+
+    def _advance(self, action: int) -> Step:
+        observation, reward, terminated, truncated, info = self._env.step(action)
+        self._frames += self.config.frameskip
+        self._episode_step += 1
+        state = self.ram_state()
+        life_lost = state.lives < self._lives
+        self._lives = state.lives
+        if self.config.end_on_life_loss and life_lost:
+            terminated = True
+        left_room = self.config.end_on_room_exit and state.room != self.config.start_room
+        return self._make_step(observation, state, float(reward), bool(terminated),
+                               bool(truncated or left_room), life_lost)
+
+    def _make_step(self, observation, state, reward, terminated, truncated, life_lost) -> Step:
+        return Step(observation=observation, state=state, reward=reward, terminated=terminated,
+                    truncated=truncated, life_lost=life_lost, episode=self._episode,
+                    episode_step=self._episode_step, agent_step=self._agent_step,
+                    sim_time_ns=frames_to_ns(self._frames))
+
+    def close(self) -> None:
+        self._env.close()

@@ -1,0 +1,1 @@
+"""The thesis's synthetic trainer: scalar feedback and Figure 5.1 utterances from the agent's position; off when a person trains."""

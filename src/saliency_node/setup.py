@@ -1,0 +1,24 @@
+from setuptools import find_packages, setup
+
+package_name = 'saliency_node'
+
+setup(
+    name=package_name,
+    version='0.1.0',
+    packages=find_packages(exclude=['test']),
+    data_files=[
+        ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
+        ('share/' + package_name, ['package.xml']),
+    ],
+    install_requires=['setuptools'],
+    zip_safe=True,
+    maintainer='Language-attention TAMER maintainers',
+    maintainer_email='maintainers@example.org',
+    description='Language-guided template matching: utterances into saliency images (kept objects sharp, the rest blurred).',
+    license='Apache-2.0',
+    entry_points={
+        'console_scripts': [
+            'saliency_node = saliency_node.node:main',
+        ],
+    },
+)

@@ -1,0 +1,49 @@
+"""Session-wide test setup: DDS on loopback, in a ROS domain reserved for this pytest session.
+
+This runs when pytest imports it, before any test module imports rclpy, so every node a test
+starts, in this process or as a child process, inherits the isolation.
+"""
+
+import os
+
+import pytest
+
+from attention_common.isolation import isolated_environ, reserved_domain
+
+_domain_reservation = reserved_domain()
+TEST_DOMAIN_ID = _domain_reservation.__enter__()
+os.environ.update(isolated_environ(TEST_DOMAIN_ID, base={}))
+os.environ.pop('ROS_LOCALHOST_ONLY', None)
+
+
+def pytest_report_header(config):
+    return (f'ROS_DOMAIN_ID={TEST_DOMAIN_ID} '
+            f'ROS_AUTOMATIC_DISCOVERY_RANGE={os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"]}')
+
+
+def pytest_unconfigure(config):
+    _domain_reservation.__exit__(None, None, None)
+
+
+@pytest.fixture
+def probe():
+    """A node in a private rclpy context, spinning on its own thread (see harness.TopicProbe)."""
+    from harness import TopicProbe
+    with TopicProbe() as topic_probe:
+        yield topic_probe
+
+
+@pytest.fixture
+def start_node(tmp_path):
+    """Start real node executables as processes; every one still running is stopped after."""
+    from harness import NodeProcess
+    started = []
+
+    def start(executable, params=None, ros_args=(), name=None):
+        process = NodeProcess(executable, params or {}, tmp_path, ros_args=ros_args, name=name)
+        started.append(process)
+        return process
+
+    yield start
+    for process in started:
+        process.kill_if_running()
