@@ -31,8 +31,8 @@ bench: setup
 	$(BIN)/python tests/benchmarks/run_all.py
 
 lint: setup
-	$(BIN)/ament_flake8 --config tests/flake8.cfg src tests
-	$(BIN)/ament_pep257 src
+	$(BIN)/ament_flake8 src tests
+	$(BIN)/ament_pep257 src tests
 
 clean:
 	rm -rf $(VENV) build install log

@@ -14,7 +14,8 @@ setup(
     zip_safe=True,
     maintainer='Language-attention TAMER maintainers',
     maintainer_email='maintainers@example.org',
-    description="Atari Montezuma's Revenge (ALE) as a ROS 2 node: observations, agent position and /clock out, Joy actions in.",
+    description=("Atari Montezuma's Revenge (ALE) as a ROS 2 node: observations, agent position "
+                 'and /clock out, Joy actions in.'),
     license='Apache-2.0',
     entry_points={
         'console_scripts': [

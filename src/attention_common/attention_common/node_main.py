@@ -32,6 +32,11 @@ def run_node(node_factory: Callable[[], object], args=None,
     except StartupError as error:
         sys.stderr.write(f'[startup error] {error}\n')
         return 1
+    except Exception:
+        if rclpy.ok():
+            raise
+        # SIGINT / SIGTERM while the node was being built: rclpy has shut the context down, and
+        # creating a publisher or timer on it fails. That is stopping, not an error.
     finally:
         if node is not None:
             node.destroy_node()

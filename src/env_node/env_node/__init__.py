@@ -1,1 +1,1 @@
-"""Atari Montezuma's Revenge (ALE) as a ROS 2 node: observations, agent position and /clock out, Joy actions in."""
+"""Atari Montezuma's Revenge (ALE) as a ROS 2 node: frames and RAM state out, Joy in."""

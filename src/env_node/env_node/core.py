@@ -1,20 +1,25 @@
-"""Montezuma's Revenge, Room 1, as a plain Python object (no rclpy).
+"""
+Montezuma's Revenge, Room 1, as a plain Python object (no rclpy).
 
 Wraps ``ALE/MontezumaRevenge-v5`` (gymnasium + ale-py) and adds what the study needs: agent
 position, room, lives and key read from RAM; random warm-up steps at the start of a trial; the
 episode ends on game over or when the agent leaves the start room; simulation time counted in
 emulator frames (60 Hz), so that seconds mean the same in lockstep and real time.
+
+RAM coordinates and the frame: one RAM unit is one pixel on both axes; x grows to the right,
+y grows upwards. The agent's sprite (8 columns, 20 rows while standing) spans columns
+``x - 1 .. x + 6`` and rows ``308 - y .. 327 - y`` (its feet on row ``327 - y``), give or take
+up to three pixels while it walks, jumps or dies. ``ram_to_pixel`` and ``agent_box`` encode this.
 """
 
 from dataclasses import dataclass
-from typing import NamedTuple, Optional
+from typing import NamedTuple, Optional, Tuple
 
 import ale_py
-import gymnasium as gym
-import numpy as np
-
 from attention_common.joy_actions import NUM_ACTIONS
 from attention_common.stamps import frames_to_ns
+import gymnasium as gym
+import numpy as np
 
 gym.register_envs(ale_py)
 
@@ -23,6 +28,42 @@ RAM_X, RAM_Y, RAM_ROOM, RAM_LIVES, RAM_INVENTORY = 42, 43, 3, 58, 65
 KEY_BIT = 0x02  # inventory bit set while the agent carries the key
 
 FRAME_HEIGHT, FRAME_WIDTH = 210, 160
+
+# RAM position -> frame pixels (measured against the rendered sprite; see tests/test_env_core.py).
+AGENT_LEFT_OFFSET = -1
+"""The sprite's leftmost column is ``x + AGENT_LEFT_OFFSET``."""
+AGENT_FEET_ROW = 327
+"""The sprite's bottom row (its feet) is ``AGENT_FEET_ROW - y``."""
+AGENT_WIDTH, AGENT_HEIGHT = 8, 20
+"""Size of the standing sprite in pixels (hat to feet)."""
+
+
+def ram_to_pixel(x: float, y: float) -> Tuple[float, float]:
+    """Return ``(column, row)`` of the centre of the agent's sprite for RAM position ``(x, y)``."""
+    return (x + AGENT_LEFT_OFFSET + (AGENT_WIDTH - 1) / 2.0,
+            AGENT_FEET_ROW - y - (AGENT_HEIGHT - 1) / 2.0)
+
+
+def pixel_to_ram(column: float, row: float) -> Tuple[float, float]:
+    """Inverse of ``ram_to_pixel``: the RAM position whose sprite is centred on a pixel."""
+    return (column - AGENT_LEFT_OFFSET - (AGENT_WIDTH - 1) / 2.0,
+            AGENT_FEET_ROW - row - (AGENT_HEIGHT - 1) / 2.0)
+
+
+def agent_box(x: int, y: int, margin: int = 0) -> Tuple[int, int, int, int]:
+    """
+    Return ``(top, bottom, left, right)`` slice bounds (end exclusive) of the agent's sprite.
+
+    ``frame[top:bottom, left:right]`` holds the standing sprite; ``margin`` pixels on every side
+    widen it (3 holds the walking, jumping, climbing and dying frames too). Clipped to the
+    frame, so the box may be empty when the position is off screen.
+    """
+    left = int(x) + AGENT_LEFT_OFFSET - margin
+    bottom = AGENT_FEET_ROW - int(y) + 1 + margin
+    top = bottom - AGENT_HEIGHT - 2 * margin
+    right = left + AGENT_WIDTH + 2 * margin
+    return (min(max(top, 0), FRAME_HEIGHT), min(max(bottom, 0), FRAME_HEIGHT),
+            min(max(left, 0), FRAME_WIDTH), min(max(right, 0), FRAME_WIDTH))
 
 
 @dataclass
@@ -69,19 +110,24 @@ class Step(NamedTuple):
     truncated: bool
     """The agent left the start room."""
     life_lost: bool
+    """A life was lost at this step (also at the final death that ends the game)."""
     episode: int
     episode_step: int
     agent_step: int
     """Steps the agent has taken in this trial (warm-up not counted)."""
     sim_time_ns: int
     """Simulation time: emulator frames since the trial began, at 60 Hz."""
+    episode_return: float = 0.0
+    """Sum of the game rewards of this episode so far, this step's included."""
 
     @property
     def done(self) -> bool:
+        """Tell whether the episode ended at this step (the caller resets)."""
         return self.terminated or self.truncated
 
 
 def read_ram_state(ram: np.ndarray) -> RamState:
+    """Decode the study's variables from the 128 bytes of Atari RAM."""
     return RamState(x=int(ram[RAM_X]), y=int(ram[RAM_Y]), room=int(ram[RAM_ROOM]),
                     lives=int(ram[RAM_LIVES]), has_key=bool(ram[RAM_INVENTORY] & KEY_BIT))
 
@@ -104,13 +150,17 @@ class MontezumaEnv:
         self._episode_step = 0
         self._agent_step = 0
         self._lives = 0
+        self._episode_return = 0.0
+        self._needs_reset = True
         self._seeded = False
 
     @property
     def ale(self):
+        """Return the ALEInterface (RAM access for tests and tools)."""
         return self._env.unwrapped.ale
 
     def ram_state(self) -> RamState:
+        """Read the study's variables from the current RAM."""
         return read_ram_state(self.ale.getRAM())
 
     def reset(self) -> Step:
@@ -120,6 +170,8 @@ class MontezumaEnv:
         self._seeded = True
         self._episode += 1
         self._episode_step = 0
+        self._episode_return = 0.0
+        self._needs_reset = False
         self._frames += self.config.frameskip  # keeps stamps strictly increasing
         state = self.ram_state()
         self._lives = state.lives
@@ -138,6 +190,8 @@ class MontezumaEnv:
         """Apply one agent action; the caller resets after a step that is ``done``."""
         if not 0 <= int(action) < NUM_ACTIONS:
             raise ValueError(f'action {action} is out of range 0..{NUM_ACTIONS - 1}')
+        if self._needs_reset:
+            raise RuntimeError('the episode is over (or never began): call reset() first')
         self._agent_step += 1
         return self._advance(int(action))
 
@@ -146,19 +200,25 @@ class MontezumaEnv:
         self._frames += self.config.frameskip
         self._episode_step += 1
         state = self.ram_state()
-        life_lost = state.lives < self._lives
+        # The game's last death does not decrement lives (0 stays 0); game over marks it.
+        life_lost = state.lives < self._lives or bool(terminated)
         self._lives = state.lives
         if self.config.end_on_life_loss and life_lost:
             terminated = True
         left_room = self.config.end_on_room_exit and state.room != self.config.start_room
-        return self._make_step(observation, state, float(reward), bool(terminated),
+        self._episode_return += float(reward)
+        step = self._make_step(observation, state, float(reward), bool(terminated),
                                bool(truncated or left_room), life_lost)
+        self._needs_reset = step.done
+        return step
 
     def _make_step(self, observation, state, reward, terminated, truncated, life_lost) -> Step:
         return Step(observation=observation, state=state, reward=reward, terminated=terminated,
                     truncated=truncated, life_lost=life_lost, episode=self._episode,
                     episode_step=self._episode_step, agent_step=self._agent_step,
-                    sim_time_ns=frames_to_ns(self._frames))
+                    sim_time_ns=frames_to_ns(self._frames),
+                    episode_return=self._episode_return)
 
     def close(self) -> None:
+        """Release the emulator."""
         self._env.close()

@@ -1,0 +1,298 @@
+"""
+env_node: Montezuma's Revenge over topics, in lockstep with the learner or in real time.
+
+Lockstep (``rate_hz`` 0): publish observation T, wait for the Joy stamped T, step, publish the
+next. An action with another stamp is dropped and counted, so a late or duplicate action is never
+applied to a later frame (stamps strictly increase, the pending stamp is consumed before the
+step). Without an answer for ``action_timeout`` wall seconds, observation T goes out again with
+the same stamp. Until the first answer arrives (start-up), the first observation goes out as
+soon as a subscriber appears and again every ``START_RESEND_S``, not counted as timeouts, so a
+learner still being discovered, or started later, gets it at once. Real time (``rate_hz`` > 0):
+a steady timer steps with the latest valid action.
+"""
+
+import threading
+import time
+
+from attention_common import qos, topics
+from attention_common.image_codec import numpy_to_image
+from attention_common.joy_actions import joy_to_action, JoyActionError
+from attention_common.node_main import run_node, StartupError
+from attention_common.stamps import ns_to_stamp, stamp_to_ns
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from env_node.core import EnvConfig, MontezumaEnv, Step
+from env_node.status import Counters, STATUS_KEYS, STATUS_NAME, status_values
+from geometry_msgs.msg import PointStamped
+from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.clock import Clock, ClockType
+from rclpy.exceptions import InvalidParameterTypeException
+from rclpy.node import Node
+from rosgraph_msgs.msg import Clock as ClockMsg
+from sensor_msgs.msg import Image, Joy
+
+SCREEN_FRAME = 'atari_screen'
+RAM_FRAME = 'atari_ram'
+START_POLL_S = 0.02
+"""Until the first answer: how often the node looks for a subscriber to send observations to."""
+START_RESEND_S = 0.5
+"""Until the first answer, the first observation is sent again this often (not counted as a
+timeout): DDS discovery takes seconds, and a message sent before a new subscriber has matched
+this publisher on its side is lost."""
+LOG_THROTTLE_S = 5.0
+
+# name: (default, description); floats accept an integer too (rate_hz:=15).
+PARAMETERS = {
+    'frameskip': (4, 'Emulator frames per agent step; the action is repeated on each.'),
+    'sticky_actions': (0.0, 'Probability that ALE repeats the previous action (0 = '
+                            'reproducible).'),
+    'seed': (0, 'Seeds the emulator and the random warm-up actions.'),
+    'warmup_steps': (100, 'Random steps at the start of the trial, not published.'),
+    'rate_hz': (0.0, 'Steps per second on a steady timer with the latest action; 0 = lockstep '
+                     '(wait for the action stamped with the pending observation).'),
+    'action_timeout': (2.0, 'Lockstep: wall seconds without the answer before the pending '
+                            'observation is published again (same stamp) and a timeout '
+                            'counted.'),
+    'max_steps': (0, 'Agent steps after which a last env_status with finished=true is '
+                     'published and stepping stops; 0 = unlimited.'),
+    'end_on_room_exit': (True, 'End the episode (truncated) when the agent leaves Room 1.'),
+    'end_on_life_loss': (False, 'End the episode at every life lost instead of at game over.'),
+}
+
+
+class EnvNode(Node):
+    """Publishes each step of the game; applies the Joy actions that answer it."""
+
+    def __init__(self, **kwargs):
+        super().__init__('env_node', **kwargs)
+        params = self._declare_parameters()
+        self._rate_hz = params['rate_hz']
+        self._action_timeout = params['action_timeout']
+        self._max_steps = params['max_steps']
+        if self._rate_hz < 0 or self._action_timeout <= 0 or self._max_steps < 0:
+            raise StartupError('rate_hz must be >= 0, action_timeout > 0 and max_steps >= 0 '
+                               f'(got {self._rate_hz}, {self._action_timeout}, '
+                               f'{self._max_steps})')
+        config = EnvConfig(
+            frameskip=params['frameskip'], sticky_actions=params['sticky_actions'],
+            seed=params['seed'], warmup_steps=params['warmup_steps'],
+            end_on_room_exit=params['end_on_room_exit'],
+            end_on_life_loss=params['end_on_life_loss'])
+        if config.warmup_steps < 0:
+            raise StartupError(f'warmup_steps must be >= 0, got {config.warmup_steps}')
+        self.get_logger().info(f'starting {config.env_id}, {config.warmup_steps} warm-up steps')
+        try:
+            self._env = MontezumaEnv(config)
+        except ValueError as error:
+            raise StartupError(str(error)) from None
+
+        # Messages are built once and refilled every step.
+        self._obs_msg = Image()
+        self._obs_msg.header.frame_id = SCREEN_FRAME
+        self._position_msg = PointStamped()
+        self._position_msg.header.frame_id = RAM_FRAME
+        self._key_values = [KeyValue(key=key) for key in STATUS_KEYS]
+        self._status = DiagnosticStatus(name=STATUS_NAME, hardware_id=config.env_id,
+                                        level=DiagnosticStatus.OK, values=self._key_values)
+        self._status_msg = DiagnosticArray(status=[self._status])
+        self._clock_msg = ClockMsg()
+
+        self._obs_pub = self.create_publisher(Image, topics.OBSERVATION, qos.FRAMES)
+        self._position_pub = self.create_publisher(
+            PointStamped, topics.AGENT_POSITION, qos.STEP_DATA)
+        self._status_pub = self.create_publisher(DiagnosticArray, topics.ENV_STATUS, qos.STEP_DATA)
+        self._clock_pub = self.create_publisher(ClockMsg, topics.CLOCK, qos.CLOCK)
+        self.create_subscription(Joy, topics.ACTION, self._on_action, qos.ACTIONS)
+
+        # Callbacks run one at a time (single-threaded executor, one callback group); the lock
+        # keeps the pending stamp and the step atomic even under a multi-threaded executor.
+        self._lock = threading.Lock()
+        self._counters = Counters()
+        self._finished = False
+        self._pending_ns = None  # lockstep: stamp of the observation awaiting its action
+        self._answered = False  # lockstep: an action has been applied (start-up is over)
+        self._started_at = self._sent_at = time.monotonic()
+        self._latest_action = 0  # real time: NOOP until a valid action arrives
+        self._current = self._env.warm_up()
+
+        # Wall-clock timers: a steady clock, whatever use_sim_time says.
+        steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self._timeout_timer = None
+        self._start_timer = None
+        if self._rate_hz > 0:
+            self._publish_step(self._current)
+            self.create_timer(1.0 / self._rate_hz, self._on_tick, clock=steady)
+        else:
+            self._timeout_timer = self.create_timer(
+                self._action_timeout, self._on_timeout, clock=steady, autostart=False)
+            self._start_timer = self.create_timer(START_POLL_S, self._on_start_poll, clock=steady)
+        mode = f'real time at {self._rate_hz} Hz' if self._rate_hz > 0 else 'lockstep'
+        self.get_logger().info(
+            f'{config.env_id} ready ({mode}, frameskip {config.frameskip}, seed {config.seed}, '
+            f'{config.warmup_steps} warm-up steps done, first stamp '
+            f'{self._current.sim_time_ns} ns)')
+
+    def _declare_parameters(self) -> dict:
+        values = {}
+        for name, (default, description) in PARAMETERS.items():
+            is_float = isinstance(default, float)
+            descriptor = ParameterDescriptor(description=description, read_only=True,
+                                             dynamic_typing=is_float)
+            try:
+                value = self.declare_parameter(name, default, descriptor).value
+            except InvalidParameterTypeException as error:
+                raise StartupError(f'parameter {name}: {error}') from None
+            if is_float:
+                if isinstance(value, bool) or not isinstance(value, (int, float)):
+                    raise StartupError(f'parameter {name} must be a number, got {value!r}')
+                value = float(value)
+            values[name] = value
+        return values
+
+    # -- publishing -------------------------------------------------------------------------
+
+    def _publish_step_data(self, step: Step, finished: bool = False) -> None:
+        """Publish /clock, agent_position and env_status of a step (not its observation)."""
+        stamp = ns_to_stamp(step.sim_time_ns)
+        self._clock_msg.clock = stamp
+        self._clock_pub.publish(self._clock_msg)
+        state = step.state
+        self._position_msg.header.stamp = stamp
+        point = self._position_msg.point
+        point.x, point.y, point.z = float(state.x), float(state.y), float(state.room)
+        self._position_pub.publish(self._position_msg)
+        for key_value, (_, value) in zip(
+                self._key_values, status_values(step, self._counters, finished)):
+            key_value.value = value
+        self._status.message = ('finished' if finished else
+                                'episode over' if step.done else 'running')
+        self._status_msg.header.stamp = stamp
+        self._status_pub.publish(self._status_msg)
+
+    def _publish_step(self, step: Step) -> None:
+        """Publish a step the agent acts on; in lockstep it becomes the pending observation."""
+        self._current = step
+        self._publish_step_data(step)
+        numpy_to_image(step.observation, 'rgb8', self._obs_msg)  # encoded once per step
+        self._obs_msg.header.stamp = self._position_msg.header.stamp
+        self._obs_pub.publish(self._obs_msg)
+        if self._timeout_timer is not None:
+            self._pending_ns = step.sim_time_ns
+            self._sent_at = time.monotonic()
+            if self._answered:  # start-up has its own re-sends, see _on_start_poll
+                self._timeout_timer.reset()  # (re)starts the wait for this answer
+
+    def _advance(self, action: int) -> None:
+        step = self._env.step(action)
+        finished = 0 < self._max_steps <= step.agent_step
+        if step.done or finished:
+            # The last action still gets judged: its position and status go out, no observation.
+            self._publish_step_data(step, finished)
+            if finished:
+                self._finish(step)
+                return
+            step = self._env.reset()
+        self._publish_step(step)
+
+    def _finish(self, step: Step) -> None:
+        self._finished = True
+        self._pending_ns = None
+        for timer in (self._timeout_timer, self._start_timer):
+            if timer is not None:
+                timer.cancel()
+        self.get_logger().info(
+            f'finished: {step.agent_step} agent steps (max_steps), {step.episode + 1} episodes, '
+            f'{self._counters.timeouts} timeouts, {self._counters.dropped_actions} dropped '
+            'actions; no more steps')
+
+    # -- callbacks --------------------------------------------------------------------------
+
+    def _on_start_poll(self) -> None:
+        """Before the first answer: send the first observation to whoever subscribes."""
+        with self._lock:
+            if self._answered or self._finished:
+                return
+            now = time.monotonic()
+            if self._pending_ns is None:
+                nobody_yet = now - self._started_at < self._action_timeout
+                if self._obs_pub.get_subscription_count() > 0 or not nobody_yet:
+                    self._publish_step(self._current)
+            elif now - self._sent_at >= START_RESEND_S:
+                self._sent_at = now
+                self._obs_pub.publish(self._obs_msg)
+                if now - self._started_at >= self._action_timeout:
+                    self.get_logger().info(
+                        f'waiting for the first action (stamped {self._pending_ns} ns) on '
+                        f'{self.resolve_topic_name(topics.ACTION)}',
+                        throttle_duration_sec=10 * LOG_THROTTLE_S)
+
+    def _on_timeout(self) -> None:
+        with self._lock:
+            if self._finished or self._pending_ns is None:
+                return
+            self._counters = self._counters._replace(timeouts=self._counters.timeouts + 1)
+            self.get_logger().warning(
+                f'no action stamped {self._pending_ns} ns within {self._action_timeout} s; '
+                f'observation published again ({self._counters.timeouts} timeouts so far)',
+                throttle_duration_sec=LOG_THROTTLE_S)
+            self._obs_pub.publish(self._obs_msg)
+
+    def _on_tick(self) -> None:
+        with self._lock:
+            if not self._finished:
+                self._advance(self._latest_action)
+
+    def _drop(self, bad: bool = False) -> int:
+        counters = self._counters
+        self._counters = counters._replace(dropped_actions=counters.dropped_actions + 1,
+                                           bad_actions=counters.bad_actions + int(bad))
+        return self._counters.dropped_actions
+
+    def _on_action(self, msg: Joy) -> None:
+        try:
+            action = joy_to_action(msg.axes, msg.buttons)
+        except JoyActionError as error:
+            with self._lock:
+                dropped = self._drop(bad=True)
+            self.get_logger().error(f'bad action dropped ({dropped} dropped so far): {error}',
+                                    throttle_duration_sec=LOG_THROTTLE_S)
+            return
+        if self._rate_hz > 0:
+            self._latest_action = action
+            return
+        stamp_ns = stamp_to_ns(msg.header.stamp)
+        with self._lock:
+            pending = self._pending_ns
+            if pending is None or stamp_ns != pending:
+                dropped = self._drop()
+            else:
+                self._pending_ns = None  # consumed before stepping: a duplicate cannot match
+                if not self._answered:
+                    self._answered = True
+                    self._start_timer.cancel()
+                self._advance(action)
+                return
+        if pending is None:
+            self.get_logger().warning(
+                f'action stamped {stamp_ns} ns dropped: no observation is pending '
+                f'({"finished" if self._finished else "not started"}; {dropped} dropped so far)',
+                throttle_duration_sec=LOG_THROTTLE_S)
+        else:
+            age = 'late or duplicate' if stamp_ns < pending else 'from the future'
+            self.get_logger().warning(
+                f'action stamped {stamp_ns} ns dropped ({age}): the pending observation is '
+                f'stamped {pending} ns ({dropped} dropped so far)',
+                throttle_duration_sec=LOG_THROTTLE_S)
+
+    def destroy_node(self) -> None:
+        """Release the emulator with the node."""
+        self._env.close()
+        super().destroy_node()
+
+
+def main(args=None):
+    """Run env_node until Ctrl-C / SIGTERM (exit code 0)."""
+    return run_node(EnvNode, args)
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())

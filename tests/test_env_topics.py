@@ -1,0 +1,229 @@
+"""The real env_node executable, driven only over topics by a probe node acting as the learner."""
+
+import math
+import signal
+
+from attention_common import qos, topics
+from attention_common.image_codec import image_to_numpy
+from attention_common.joy_actions import action_to_joy
+from attention_common.stamps import frames_to_ns, stamp_to_ns
+from diagnostic_msgs.msg import DiagnosticArray
+from env_node.status import parse_status
+from geometry_msgs.msg import PointStamped
+import pytest
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import Image, Joy
+
+pytestmark = pytest.mark.topics
+
+NOOP, UP, RIGHT, LEFT, DOWN = 0, 2, 3, 4, 5
+STARTUP_S = 30.0  # importing, making the emulator and the warm-up, on a busy machine
+REPLY_S = 10.0
+FRAMESKIP = 4
+
+
+class Learner:
+    """The probe's side of the contract: observe, answer by stamp, read positions and status."""
+
+    def __init__(self, probe):
+        self.observations = probe.subscribe(Image, topics.OBSERVATION, qos.FRAMES)
+        self.positions = probe.subscribe(PointStamped, topics.AGENT_POSITION, qos.STEP_DATA)
+        self.statuses = probe.subscribe(DiagnosticArray, topics.ENV_STATUS, qos.STEP_DATA)
+        self.clock = probe.subscribe(Clock, topics.CLOCK, qos.CLOCK)
+        self.actions = probe.publisher(Joy, topics.ACTION, qos.ACTIONS)
+        self._probe = probe
+
+    def connect(self, timeout=STARTUP_S):
+        """Wait for the env's first observation and for it to hear our actions."""
+        assert self.observations.wait_count(1, timeout), 'no observation from env_node'
+        assert self._probe.wait_for_subscribers(self.actions, timeout=timeout)
+        return self.observations.snapshot()[0]
+
+    def send(self, stamp_ns, action=NOOP, axes=None, buttons=None):
+        default_axes, default_buttons = action_to_joy(action)
+        msg = Joy(axes=list(default_axes if axes is None else axes),
+                  buttons=list(default_buttons if buttons is None else buttons))
+        msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(int(stamp_ns), 1_000_000_000)
+        self.actions.publish(msg)
+
+    def next_observation(self, after_ns, timeout=REPLY_S):
+        """Wait for an observation stamped later than ``after_ns`` and return it."""
+        def newer(messages):
+            return any(stamp_to_ns(m.header.stamp) > after_ns for m in messages)
+        assert self.observations.wait_for(newer, timeout), f'no observation after {after_ns}'
+        return next(m for m in self.observations.snapshot()
+                    if stamp_to_ns(m.header.stamp) > after_ns)
+
+    def step(self, observation, action=NOOP):
+        """Answer ``observation`` and return the next one."""
+        stamp = stamp_to_ns(observation.header.stamp)
+        self.send(stamp, action)
+        return self.next_observation(stamp)
+
+    def status_at(self, stamp_ns, timeout=REPLY_S):
+        def found(messages):
+            return any(stamp_to_ns(m.header.stamp) == stamp_ns for m in messages)
+        assert self.statuses.wait_for(found, timeout), f'no env_status stamped {stamp_ns}'
+        msg = next(m for m in self.statuses.snapshot() if stamp_to_ns(m.header.stamp) == stamp_ns)
+        return parse_status((kv.key, kv.value) for kv in msg.status[0].values)
+
+    def position_at(self, stamp_ns, timeout=REPLY_S):
+        def found(messages):
+            return any(stamp_to_ns(m.header.stamp) == stamp_ns for m in messages)
+        assert self.positions.wait_for(found, timeout), f'no agent_position stamped {stamp_ns}'
+        return next(m.point for m in self.positions.snapshot()
+                    if stamp_to_ns(m.header.stamp) == stamp_ns)
+
+
+def stamps(messages):
+    return [stamp_to_ns(m.header.stamp) for m in messages]
+
+
+def test_lockstep_frames_stamps_and_motion(start_node, probe):
+    learner = Learner(probe)
+    env = start_node('env_node', {'action_timeout': 30.0})  # default warm-up of 100 steps
+    observation = learner.connect()
+    first_ns = stamp_to_ns(observation.header.stamp)
+    assert first_ns == frames_to_ns((100 + 1) * FRAMESKIP)  # the warm-up steps went unpublished
+    learner.position_at(first_ns)
+    assert min(stamps(learner.positions.snapshot())) == first_ns
+    for action in [RIGHT, RIGHT, LEFT, LEFT, DOWN, DOWN, UP, UP] * 2:
+        observation = learner.step(observation, action)
+    received = learner.observations.snapshot()
+    for msg in received:
+        assert (msg.encoding, msg.height, msg.width, msg.step) == ('rgb8', 210, 160, 480)
+        assert image_to_numpy(msg).shape == (210, 160, 3)
+    observed = sorted(set(stamps(received)))  # start-up may send the first one again
+    assert stamps(received) == sorted(stamps(received))  # never older than one already sent
+    assert len(observed) == 17
+    assert set(observed) <= set(stamps(learner.positions.snapshot()))
+    assert learner.clock.wait_for(
+        lambda m: stamp_to_ns(m[-1].clock) == observed[-1], REPLY_S)  # /clock follows the steps
+    points = {(learner.position_at(s).x, learner.position_at(s).y) for s in observed}
+    assert len(points) > 1  # the agent moved
+    last = learner.status_at(observed[-1])
+    assert last['agent_step'] == 16 and last['room'] == 1 and not last['finished']
+    assert env.stop(signal.SIGINT) == 0
+
+
+def test_wrong_stamps_and_bad_actions_are_dropped_and_counted(start_node, probe):
+    learner = Learner(probe)
+    env = start_node('env_node', {'warmup_steps': 0, 'action_timeout': 30.0})
+    observation = learner.connect()
+    pending = stamp_to_ns(observation.header.stamp)
+    one_step = frames_to_ns(2 * FRAMESKIP) - frames_to_ns(FRAMESKIP)
+    learner.send(pending - one_step, RIGHT)   # late: an earlier frame's stamp
+    learner.send(pending + one_step, RIGHT)   # from the future
+    learner.send(0, RIGHT)                    # a gamepad's own stamp
+    learner.send(pending, axes=[math.nan, 0.0], buttons=[0])
+    learner.send(pending, axes=[2.0, 0.0], buttons=[0])
+    learner.send(pending, axes=[0.0], buttons=[0])
+    learner.send(pending, axes=[0.0, 0.0], buttons=[])
+    learner.send(pending, NOOP)               # the answer
+    observation = learner.next_observation(pending)
+    assert stamp_to_ns(observation.header.stamp) == pending + one_step  # exactly one step
+    status = learner.status_at(pending + one_step)
+    assert status['agent_step'] == 1
+    assert status['dropped_actions'] == 7 and status['bad_actions'] == 4
+    assert learner.position_at(pending + one_step).x == learner.position_at(pending).x  # NOOP
+    assert env.alive()
+
+    learner.send(pending, RIGHT)  # a late duplicate of the answer already applied
+    observation = learner.step(observation, NOOP)
+    status = learner.status_at(stamp_to_ns(observation.header.stamp))
+    assert status['agent_step'] == 2 and status['dropped_actions'] == 8
+    assert 'dropped' in env.log_text() and 'bad action' in env.log_text()
+    assert env.stop(signal.SIGINT) == 0
+
+
+def test_timeout_publishes_the_pending_observation_again(start_node, probe):
+    learner = Learner(probe)
+    env = start_node('env_node', {'warmup_steps': 0, 'action_timeout': 0.5})
+    observation = learner.step(learner.connect(), RIGHT)  # past start-up: now timeouts count
+    pending = stamp_to_ns(observation.header.stamp)
+    assert learner.status_at(pending)['timeouts'] == 0
+    assert learner.observations.wait_for(lambda m: stamps(m).count(pending) >= 2, REPLY_S)
+    again = [m for m in learner.observations.snapshot() if stamp_to_ns(m.header.stamp) == pending]
+    assert again[1].data == again[0].data  # the same observation, the same stamp
+    observation = learner.step(again[1], RIGHT)
+    status = learner.status_at(stamp_to_ns(observation.header.stamp))
+    assert status['timeouts'] >= 1 and status['agent_step'] == 2
+    assert 'no action stamped' in env.log_text()
+    assert env.stop(signal.SIGTERM) == 0
+
+
+def test_terminal_step_reset_and_max_steps(start_node, probe):
+    learner = Learner(probe)
+    env = start_node('env_node', {'warmup_steps': 0, 'action_timeout': 30.0, 'max_steps': 25,
+                                  'end_on_life_loss': True})
+    observation = learner.connect()
+    terminal = None
+    for _ in range(24):  # walking right off the middle platform kills the agent
+        stamp = stamp_to_ns(observation.header.stamp)
+        observation = learner.step(observation, RIGHT)
+        after = stamp_to_ns(observation.header.stamp)
+        if learner.status_at(after)['episode'] == 1:
+            terminal = [s for s in stamps(learner.statuses.snapshot()) if stamp < s < after]
+            break
+    assert terminal, 'the episode never ended'
+    # The terminal step: its position and status went out (the last action gets judged), ...
+    assert len(terminal) == 1 and learner.status_at(terminal[0])['terminated']
+    assert learner.status_at(terminal[0])['life_lost']
+    learner.position_at(terminal[0])
+    # ... no observation; the reset step is the next pending observation.
+    assert terminal[0] not in stamps(learner.observations.snapshot())
+    assert learner.status_at(after)['episode_step'] == 0
+
+    while learner.status_at(stamp_to_ns(observation.header.stamp))['agent_step'] < 24:
+        observation = learner.step(observation, NOOP)
+    pending = stamp_to_ns(observation.header.stamp)
+    learner.send(pending, NOOP)  # step 25, the last one
+    assert learner.statuses.wait_for(
+        lambda m: parse_status((kv.key, kv.value) for kv in m[-1].status[0].values)['finished'],
+        REPLY_S)
+    final = stamp_to_ns(learner.statuses.snapshot()[-1].header.stamp)
+    assert learner.status_at(final)['agent_step'] == 25
+    assert final not in stamps(learner.observations.snapshot())
+    learner.send(pending, NOOP)  # nothing is pending any more
+    learner.send(final, NOOP)
+    assert env.wait_for_log('no observation is pending', REPLY_S) and env.alive()
+    assert env.stop(signal.SIGINT) == 0
+
+
+def test_real_time_steps_with_the_latest_action(start_node, probe):
+    learner = Learner(probe)
+    env = start_node('env_node', {'warmup_steps': 0, 'rate_hz': 30})  # an integer works too
+    assert learner.observations.wait_count(3, STARTUP_S)  # it steps without being answered
+    assert learner.positions.wait_count(3, REPLY_S)
+    assert probe.wait_for_subscribers(learner.actions, timeout=STARTUP_S)
+    start_x = learner.positions.snapshot()[0].point.x
+    assert all(m.point.x == start_x for m in learner.positions.snapshot())  # NOOP so far
+    learner.send(0, RIGHT)  # any stamp: a gamepad's
+    assert learner.positions.wait_for(lambda m: m[-1].point.x > start_x, REPLY_S)
+    observed = stamps(learner.observations.snapshot())
+    assert all(b > a for a, b in zip(observed, observed[1:]))
+    learner.send(0, axes=[math.inf, 0.0], buttons=[0])
+    assert env.wait_for_log('bad action', REPLY_S) and env.alive()
+    count = len(learner.observations.snapshot())
+    assert learner.observations.wait_count(count + 2, REPLY_S)  # still stepping
+    assert env.stop(signal.SIGINT) == 0
+
+
+@pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM], ids=['sigint', 'sigterm'])
+def test_a_signal_during_start_up_exits_cleanly(start_node, sig):
+    env = start_node('env_node', {'warmup_steps': 5000})  # seconds of warm-up to land in
+    assert env.wait_for_log('starting', STARTUP_S)
+    assert env.stop(sig) == 0
+    log = env.log_path.read_text()  # the process has ended and its log is closed
+    assert 'ready' not in log and 'Traceback' not in log
+
+
+@pytest.mark.parametrize('params, message', [
+    ({'frameskip': 0}, 'frameskip'),
+    ({'action_timeout': 0.0}, 'action_timeout'),
+    ({'rate_hz': 'fast'}, 'rate_hz'),
+], ids=['frameskip', 'action_timeout', 'rate_hz'])
+def test_bad_parameters_stop_it_with_a_clear_message(start_node, params, message):
+    env = start_node('env_node', params)
+    assert env.process.wait(timeout=STARTUP_S) == 1
+    assert '[startup error]' in env.log_text() and message in env.log_text()
