@@ -14,7 +14,8 @@ setup(
     zip_safe=True,
     maintainer='Language-attention TAMER maintainers',
     maintainer_email='maintainers@example.org',
-    description="The thesis's synthetic trainer: scalar feedback and Figure 5.1 utterances from the agent's position; off when a person trains.",
+    description=("The thesis's synthetic trainer: scalar feedback and Figure 5.1 utterances "
+                 "from the agent's position; off when a person trains."),
     license='Apache-2.0',
     entry_points={
         'console_scripts': [

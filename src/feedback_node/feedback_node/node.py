@@ -1,0 +1,215 @@
+"""
+feedback_node: the thesis's synthetic trainer over topics, or a listener when a person trains.
+
+Subscribes ``agent_position``. With ``synthetic`` true, for every position (step T') it
+publishes the feedback judging the action of the previous step T (``feedback_stamped``, stamp T,
+then the plain ``feedback``) and, when one is due, the utterance said at T'
+(``utterance_stamped``, stamp T', then the plain ``utterance``). With ``synthetic`` false it
+publishes nothing and logs what a person says on ``utterance`` and ``feedback``; bad input gets
+a clear error line and is counted. ``synthetic`` can be switched at run time
+(``ros2 param set /feedback_node synthetic false``).
+"""
+
+import math
+
+from attention_common import qos, topics
+from attention_common.node_main import run_node, StartupError
+from attention_common.stamps import NS_PER_S, ns_to_stamp, stamp_to_ns
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from feedback_node.human_input import excerpt, feedback_problem, utterance_problem
+from feedback_node.trainer import SyntheticTrainer, TrainerConfig
+from feedback_node.utterances import Utterance
+from geometry_msgs.msg import PointStamped, Vector3Stamped
+from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
+from rclpy.clock import Clock, ClockType
+from rclpy.exceptions import InvalidParameterTypeException
+from rclpy.node import Node
+from std_msgs.msg import Float32, String
+
+HARDWARE_ID = 'synthetic_trainer'
+SUMMARY_PERIOD_S = 30.0
+
+# name: (default, description). Floats accept an integer too (utterance_interval:=0).
+PARAMETERS = {
+    'synthetic': (True, 'true: the synthetic trainer speaks and judges; false: a person does '
+                        '(ros2 topic pub), this node only logs what it hears. Settable at run '
+                        'time.'),
+    'utterance_interval': (10.0, 'Seconds of simulation time between utterances; 0 = every '
+                                 'step; negative = no utterances.'),
+    'alpha_threshold': (8.0, 'h = +1 when the agent is closer than this to a critical position '
+                             '(equation 4.2); also the radius of standing on one.'),
+    'beta_threshold': (20.0, 'h = -1 when the agent is this far or further; 0 in between.'),
+    'stationary_steps': (10, 'h = -1 once the agent has stood still for more than this many '
+                             'steps.'),
+    'reward_variant': ('nearest', "'nearest' (the thesis: nearest critical position) or "
+                                  "'progress' (the furthest reached so far and the next)."),
+    'stuck_buffer_steps': (10, 'Length of the position buffer of the stuck rule: no utterance '
+                               'while all its positions are equal.'),
+    'feedback_probability': (1.0, 'Probability that a step gets feedback (1 = every step).'),
+    'feedback_delay_min': (0.0, 'Shortest delay of feedback, seconds of simulation time.'),
+    'feedback_delay_max': (0.0, 'Longest delay; drawn uniformly between the two.'),
+    'feedback_noise': (0.0, 'Probability that the sign of h is flipped.'),
+    'seed': (0, 'Seeds the human-like draws (probability, delay, noise).'),
+}
+
+
+class FeedbackNode(Node):
+    """The synthetic trainer (section 4.1, Figure 5.1) as a node."""
+
+    def __init__(self, **kwargs):
+        super().__init__('feedback_node', **kwargs)
+        params = self._declare_parameters()
+        self._synthetic = bool(params.pop('synthetic'))
+        try:
+            self._config = TrainerConfig(**params)
+            self._trainer = SyntheticTrainer(self._config)
+        except ValueError as error:
+            raise StartupError(str(error)) from None
+        self._now_ns = None  # the newest step stamp heard: this node's "now"
+        self._restarts_logged = 0
+        self._counts = {'bad_positions': 0, 'heard_utterances': 0, 'heard_feedback': 0,
+                        'bad_utterances': 0, 'bad_feedback': 0, 'utterances': 0}
+
+        self._feedback_stamped_pub = self.create_publisher(
+            Vector3Stamped, topics.FEEDBACK_STAMPED, qos.HUMAN)
+        self._feedback_pub = self.create_publisher(Float32, topics.FEEDBACK, qos.HUMAN)
+        self._utterance_stamped_pub = self.create_publisher(
+            DiagnosticArray, topics.UTTERANCE_STAMPED, qos.HUMAN)
+        self._utterance_pub = self.create_publisher(String, topics.UTTERANCE, qos.HUMAN)
+        self.create_subscription(PointStamped, topics.AGENT_POSITION, self._on_position,
+                                 qos.STEP_DATA)
+        self.create_subscription(String, topics.UTTERANCE, self._on_heard_utterance, qos.HUMAN)
+        self.create_subscription(Float32, topics.FEEDBACK, self._on_heard_feedback, qos.HUMAN)
+        self.add_on_set_parameters_callback(self._on_set_parameters)
+        steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self.create_timer(SUMMARY_PERIOD_S, self._log_summary, clock=steady)
+        self._last_summary = None
+        self.get_logger().info(f'feedback_node ready: {self._mode_text()}')
+
+    def _declare_parameters(self) -> dict:
+        values = {}
+        for name, (default, description) in PARAMETERS.items():
+            is_float = isinstance(default, float)
+            descriptor = ParameterDescriptor(description=description,
+                                             read_only=name != 'synthetic',
+                                             dynamic_typing=is_float)
+            try:
+                value = self.declare_parameter(name, default, descriptor).value
+            except InvalidParameterTypeException as error:
+                raise StartupError(f'parameter {name}: {error}') from None
+            if is_float:
+                if isinstance(value, bool) or not isinstance(value, (int, float)):
+                    raise StartupError(f'parameter {name} must be a number, got {value!r}')
+                value = float(value)
+            values[name] = value
+        return values
+
+    def _mode_text(self) -> str:
+        if not self._synthetic:
+            return 'a person trains (synthetic:=false): publishing nothing, logging what it hears'
+        c = self._config
+        interval = ('off' if c.utterance_interval < 0 else 'every step'
+                    if c.utterance_interval == 0 else f'every {c.utterance_interval:g} s')
+        return (f'synthetic trainer, reward {c.reward_variant} (alpha {c.alpha_threshold:g}, '
+                f'beta {c.beta_threshold:g}, stationary {c.stationary_steps} steps), '
+                f'utterances {interval}, feedback probability {c.feedback_probability:g}, '
+                f'delay {c.feedback_delay_min:g}-{c.feedback_delay_max:g} s, '
+                f'noise {c.feedback_noise:g}')
+
+    def _on_set_parameters(self, parameters) -> SetParametersResult:
+        for parameter in parameters:
+            if parameter.name == 'synthetic':
+                if not isinstance(parameter.value, bool):
+                    return SetParametersResult(successful=False, reason='synthetic is a bool')
+                if parameter.value and not self._synthetic:
+                    self._trainer.reset()  # do not judge across the time a person trained
+                self._synthetic = parameter.value
+                self.get_logger().info(f'now: {self._mode_text()}')
+        return SetParametersResult(successful=True)
+
+    # -- the synthetic trainer --------------------------------------------------------------
+
+    def _on_position(self, msg: PointStamped) -> None:
+        stamp_ns = stamp_to_ns(msg.header.stamp)
+        x, y = msg.point.x, msg.point.y
+        if not (math.isfinite(x) and math.isfinite(y)):
+            self._counts['bad_positions'] += 1
+            self.get_logger().error(f'agent_position dropped: x={x}, y={y} is not finite')
+            return
+        self._now_ns = stamp_ns
+        if not self._synthetic:
+            return
+        out = self._trainer.on_position(stamp_ns, x, y)
+        if self._trainer.counts['restarts'] > self._restarts_logged:
+            self._restarts_logged = self._trainer.counts['restarts']
+            self.get_logger().warning(
+                f'agent_position stamps went back (now {stamp_ns} ns): a new trial, '
+                'starting the trainer over')
+        for feedback in out.feedback:
+            msg_out = Vector3Stamped()
+            msg_out.header.stamp = ns_to_stamp(feedback.stamp_ns)
+            msg_out.vector.x = float(feedback.h)
+            msg_out.vector.y = float(feedback.position)
+            msg_out.vector.z = float(feedback.distance)
+            self._feedback_stamped_pub.publish(msg_out)
+            self._feedback_pub.publish(Float32(data=float(feedback.h)))
+        if out.utterance is not None:
+            self._publish_utterance(out.utterance)
+
+    def _publish_utterance(self, utterance: Utterance) -> None:
+        status = DiagnosticStatus(
+            level=DiagnosticStatus.OK, name='utterance', message=utterance.text,
+            hardware_id=HARDWARE_ID,
+            values=[KeyValue(key='position', value=str(utterance.position)),
+                    KeyValue(key='sentence_of', value=str(utterance.sentence_of))])
+        stamped = DiagnosticArray(status=[status])
+        stamped.header.stamp = ns_to_stamp(utterance.stamp_ns)
+        self._utterance_stamped_pub.publish(stamped)
+        self._utterance_pub.publish(String(data=utterance.text))
+        self._counts['utterances'] += 1
+        self.get_logger().debug(f'said at {utterance.stamp_ns / NS_PER_S:.2f} s: '
+                                f'{utterance.text!r}')
+
+    # -- a person -----------------------------------------------------------------------------
+
+    def _now_text(self) -> str:
+        return 'before the first step' if self._now_ns is None else (
+            f'at {self._now_ns / NS_PER_S:.2f} s of simulation time')
+
+    def _on_heard_utterance(self, msg: String) -> None:
+        if self._synthetic:
+            return  # our own copies
+        problem = utterance_problem(msg.data)
+        if problem is not None:
+            self._counts['bad_utterances'] += 1
+            self.get_logger().error(f'bad utterance ignored ({problem}): {excerpt(msg.data)}')
+            return
+        self._counts['heard_utterances'] += 1
+        self.get_logger().info(f'a person said {msg.data!r} {self._now_text()}')
+
+    def _on_heard_feedback(self, msg: Float32) -> None:
+        if self._synthetic:
+            return
+        problem = feedback_problem(msg.data)
+        if problem is not None:
+            self._counts['bad_feedback'] += 1
+            self.get_logger().error(f'bad feedback ignored: {problem}')
+            return
+        self._counts['heard_feedback'] += 1
+        self.get_logger().info(f'a person gave feedback {msg.data:+g} {self._now_text()}')
+
+    def _log_summary(self) -> None:
+        summary = dict(self._counts, **self._trainer.counts,
+                       withheld_utterances=self._trainer.utterances.withheld)
+        if summary != self._last_summary:
+            self._last_summary = summary
+            self.get_logger().info(
+                'counts: ' + ', '.join(f'{key} {value}' for key, value in summary.items()))
+
+
+def main(args=None):
+    return run_node(FeedbackNode, args=args)
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())

@@ -1,0 +1,169 @@
+"""
+The synthetic trainer: one ``agent_position`` in, the feedback and utterance it causes out.
+
+Attribution: the action chosen at observation T moves the agent to the position of the next
+step T'. So when the position of T' arrives, the trainer judges it (``RewardFunction``) and
+stamps the feedback T, the step whose action it judges. A move longer than any the agent can
+make in one step (a reset after a terminal step, a respawn after a life lost) was not caused by
+an action, so that pair is not judged.
+
+Utterances are about where the agent is now: the position of T' speaks at T'.
+
+A more human-like trainer (all off by default, which is the thesis's trainer): feedback on only
+some steps (``feedback_probability``), given late (a delay drawn uniformly between
+``feedback_delay_min`` and ``feedback_delay_max`` seconds of simulation time after the
+consequence is seen; the feedback keeps the stamp of the step it judges), and sometimes wrong
+(``feedback_noise``: the probability that the sign of h is flipped). Seeded.
+"""
+
+from dataclasses import dataclass
+import heapq
+from typing import List, NamedTuple, Optional, Tuple
+
+from attention_common.stamps import NS_PER_S
+from feedback_node.critical_positions import distance
+from feedback_node.reward import RewardConfig, RewardFunction, TELEPORT_DISTANCE
+from feedback_node.utterances import Utterance, UtteranceGenerator
+import numpy as np
+
+
+@dataclass
+class TrainerConfig:
+    """Parameters of the synthetic trainer; the node's ROS parameters carry the same names."""
+
+    alpha_threshold: float = 8.0
+    """h = 1 closer than this to a critical position; also the radius of 'standing on' one."""
+    beta_threshold: float = 20.0
+    """h = -1 at least this far from it (in between: 0)."""
+    stationary_steps: int = 10
+    """h = -1 after standing still for more than this many steps."""
+    reward_variant: str = 'nearest'
+    """'nearest' (the thesis) or 'progress' (see feedback_node.reward)."""
+    utterance_interval: float = 10.0
+    """Seconds of simulation time between utterances; 0 = every step; negative = never."""
+    stuck_buffer_steps: int = 10
+    """Length of the position buffer of the stuck rule."""
+    feedback_probability: float = 1.0
+    """Probability that a step gets feedback at all."""
+    feedback_delay_min: float = 0.0
+    """Shortest delay (simulation seconds) before feedback is given."""
+    feedback_delay_max: float = 0.0
+    """Longest delay; the delay is uniform between the two."""
+    feedback_noise: float = 0.0
+    """Probability that the sign of h is flipped."""
+    seed: int = 0
+    """Seeds the human-like draws."""
+
+    def __post_init__(self):
+        for name in ('feedback_probability', 'feedback_noise'):
+            value = getattr(self, name)
+            if not 0.0 <= value <= 1.0:
+                raise ValueError(f'{name} must be in [0, 1], got {value}')
+        if not 0.0 <= self.feedback_delay_min <= self.feedback_delay_max:
+            raise ValueError('need 0 <= feedback_delay_min <= feedback_delay_max, got '
+                             f'{self.feedback_delay_min} and {self.feedback_delay_max}')
+
+    def reward_config(self) -> RewardConfig:
+        return RewardConfig(alpha_threshold=self.alpha_threshold,
+                            beta_threshold=self.beta_threshold,
+                            stationary_steps=self.stationary_steps,
+                            reward_variant=self.reward_variant)
+
+
+class Feedback(NamedTuple):
+    """Scalar feedback on the action taken at step ``stamp_ns``."""
+
+    stamp_ns: int
+    """The step judged: its action led to the position of ``seen_ns``."""
+    h: float
+    position: int
+    """The critical position the action led to, -1 in between."""
+    distance: float
+    """d (equation 4.1) of that position."""
+    seen_ns: int
+    """The step whose position was judged (the next step)."""
+    flipped: bool = False
+    """The noise option flipped the sign."""
+
+
+class TrainerOutput(NamedTuple):
+    """What to publish after one position."""
+
+    feedback: List[Feedback]
+    """Feedback due now, oldest stamp first (more than one only with a delay)."""
+    utterance: Optional[Utterance]
+
+
+class SyntheticTrainer:
+    """Turns the agent's positions into feedback and utterances; pure and deterministic."""
+
+    def __init__(self, config: Optional[TrainerConfig] = None):
+        self.config = config or TrainerConfig()
+        self.reward = RewardFunction(self.config.reward_config())
+        self.utterances = UtteranceGenerator(
+            interval_s=self.config.utterance_interval,
+            stuck_buffer_steps=self.config.stuck_buffer_steps,
+            radius=self.config.alpha_threshold)
+        self._rng = np.random.default_rng(self.config.seed)
+        self.counts = {'positions': 0, 'judged': 0, 'given': 0, 'skipped': 0, 'flipped': 0,
+                       'unjudged_jumps': 0, 'duplicates': 0, 'restarts': 0}
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the trial so far (pending delayed feedback too)."""
+        self.reward.reset()
+        self.utterances.reset()
+        self._last: Optional[Tuple[int, float, float]] = None
+        self._pending: List[Tuple[int, int, Feedback]] = []
+        self._sequence = 0
+
+    def on_position(self, stamp_ns: int, x: float, y: float) -> TrainerOutput:
+        """Take the agent's position at step ``stamp_ns``; return what to publish now."""
+        if self._last is not None and stamp_ns == self._last[0]:
+            self.counts['duplicates'] += 1  # the same step again (a re-send): already judged
+            return TrainerOutput(feedback=self._release(stamp_ns), utterance=None)
+        if self._last is not None and stamp_ns < self._last[0]:
+            self.counts['restarts'] += 1  # stamps went back: a new trial started
+            self.reset()
+        self.counts['positions'] += 1
+        judgement = self.reward(x, y)
+        if self._last is not None:
+            last_stamp, last_x, last_y = self._last
+            if distance(x, y, (last_x, last_y)) > TELEPORT_DISTANCE:
+                self.counts['unjudged_jumps'] += 1
+            else:
+                self.counts['judged'] += 1
+                self._consider(Feedback(stamp_ns=last_stamp, h=float(judgement.h),
+                                        position=judgement.position,
+                                        distance=judgement.distance, seen_ns=stamp_ns))
+        self._last = (stamp_ns, float(x), float(y))
+        return TrainerOutput(feedback=self._release(stamp_ns),
+                             utterance=self.utterances.observe(x, y, stamp_ns))
+
+    @property
+    def pending(self) -> int:
+        """Delayed feedback not given yet."""
+        return len(self._pending)
+
+    def _consider(self, feedback: Feedback) -> None:
+        config = self.config
+        if config.feedback_probability < 1.0 and self._rng.random() >= config.feedback_probability:
+            self.counts['skipped'] += 1
+            return
+        if config.feedback_noise > 0.0 and self._rng.random() < config.feedback_noise:
+            if feedback.h != 0.0:
+                feedback = feedback._replace(h=-feedback.h, flipped=True)
+                self.counts['flipped'] += 1
+        delay_s = config.feedback_delay_min
+        if config.feedback_delay_max > config.feedback_delay_min:
+            delay_s = self._rng.uniform(config.feedback_delay_min, config.feedback_delay_max)
+        due_ns = feedback.seen_ns + int(round(delay_s * NS_PER_S))
+        heapq.heappush(self._pending, (due_ns, self._sequence, feedback))
+        self._sequence += 1
+
+    def _release(self, now_ns: int) -> List[Feedback]:
+        due = []
+        while self._pending and self._pending[0][0] <= now_ns:
+            due.append(heapq.heappop(self._pending)[2])
+        self.counts['given'] += len(due)
+        return sorted(due, key=lambda feedback: feedback.stamp_ns)
