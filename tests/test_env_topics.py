@@ -227,3 +227,18 @@ def test_bad_parameters_stop_it_with_a_clear_message(start_node, params, message
     env = start_node('env_node', params)
     assert env.process.wait(timeout=STARTUP_S) == 1
     assert '[startup error]' in env.log_text() and message in env.log_text()
+
+
+def test_first_step_waits_for_the_expected_subscribers(probe, start_node):
+    """With wait_position_subscribers 1, no step goes out until agent_position is subscribed."""
+    env = start_node('env_node', {'warmup_steps': 0, 'wait_observation_subscribers': 1,
+                                  'wait_position_subscribers': 1})
+    observations = probe.subscribe(Image, topics.OBSERVATION, qos.FRAMES)
+    assert env.wait_for_log('waiting for subscribers before the first step', STARTUP_S), \
+        env.log_text()[-2000:]
+    assert not observations.messages, 'a step went out before agent_position was subscribed'
+    positions = probe.subscribe(PointStamped, topics.AGENT_POSITION, qos.STEP_DATA)
+    assert observations.wait_count(1, REPLY_S)
+    assert positions.wait_for(
+        lambda m: stamps(m)[:1] == stamps(observations.snapshot())[:1], REPLY_S)
+    assert env.stop() == 0

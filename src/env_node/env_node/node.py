@@ -56,11 +56,19 @@ PARAMETERS = {
                      'published and stepping stops; 0 = unlimited.'),
     'end_on_room_exit': (True, 'End the episode (truncated) when the agent leaves Room 1.'),
     'end_on_life_loss': (False, 'End the episode at every life lost instead of at game over.'),
+    'wait_observation_subscribers': (1, 'Lockstep start-up: send the first step only once this '
+                                        'many subscribers of observation have matched (the '
+                                        'launcher sets the graph\'s count), so no node misses '
+                                        'the first steps while DDS discovery runs.'),
+    'wait_position_subscribers': (0, 'Lockstep start-up: likewise for agent_position (the '
+                                     'synthetic trainer).'),
 }
 
 
 class EnvNode(Node):
     """Publishes each step of the game; applies the Joy actions that answer it."""
+
+    OBS, POSITION = topics.OBSERVATION, topics.AGENT_POSITION
 
     def __init__(self, **kwargs):
         super().__init__('env_node', **kwargs)
@@ -68,6 +76,8 @@ class EnvNode(Node):
         self._rate_hz = params['rate_hz']
         self._action_timeout = params['action_timeout']
         self._max_steps = params['max_steps']
+        self._wait_subscribers = ((self.OBS, params['wait_observation_subscribers']),
+                                  (self.POSITION, params['wait_position_subscribers']))
         if self._rate_hz < 0 or self._action_timeout <= 0 or self._max_steps < 0:
             raise StartupError('rate_hz must be >= 0, action_timeout > 0 and max_steps >= 0 '
                                f'(got {self._rate_hz}, {self._action_timeout}, '
@@ -207,23 +217,36 @@ class EnvNode(Node):
     # -- callbacks --------------------------------------------------------------------------
 
     def _on_start_poll(self) -> None:
-        """Before the first answer: send the first observation to whoever subscribes."""
+        """Before the first answer: send the first step once the graph's subscribers match."""
         with self._lock:
             if self._answered or self._finished:
                 return
             now = time.monotonic()
             if self._pending_ns is None:
-                nobody_yet = now - self._started_at < self._action_timeout
-                if self._obs_pub.get_subscription_count() > 0 or not nobody_yet:
+                missing = self._missing_subscribers()
+                if not missing:
                     self._publish_step(self._current)
+                elif now - self._started_at >= self._action_timeout:
+                    self.get_logger().info(
+                        f'waiting for subscribers before the first step: {missing}',
+                        throttle_duration_sec=LOG_THROTTLE_S)
             elif now - self._sent_at >= START_RESEND_S:
+                # The whole step again (same stamp): a subscriber matched late still gets it.
                 self._sent_at = now
+                self._publish_step_data(self._current)
                 self._obs_pub.publish(self._obs_msg)
                 if now - self._started_at >= self._action_timeout:
                     self.get_logger().info(
                         f'waiting for the first action (stamped {self._pending_ns} ns) on '
                         f'{self.resolve_topic_name(topics.ACTION)}',
                         throttle_duration_sec=10 * LOG_THROTTLE_S)
+
+    def _missing_subscribers(self) -> str:
+        """Describe the start-up subscribers not yet matched ('' when all are)."""
+        counts = {self.OBS: self._obs_pub.get_subscription_count(),
+                  self.POSITION: self._position_pub.get_subscription_count()}
+        return ', '.join(f'{topic} has {counts[topic]} of {wanted}'
+                         for topic, wanted in self._wait_subscribers if counts[topic] < wanted)
 
     def _on_timeout(self) -> None:
         with self._lock:
