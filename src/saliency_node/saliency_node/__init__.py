@@ -1,1 +1,4 @@
-"""Language-guided template matching: utterances into saliency images (kept objects sharp, the rest blurred)."""
+"""Language-guided template matching: utterances into saliency images.
+
+The objects an utterance names (and the agent) stay sharp, the rest is blurred.
+"""
