@@ -1,0 +1,183 @@
+"""
+From trial result files to what the report states (pure: dicts and numbers in, dicts out).
+
+Progress to position p means the furthest critical position so far is p or beyond: the first
+step at which the agent stood on p or any later position. Reaching a later position counts for
+the earlier ones too (a jump can carry the agent past a position's 8-pixel radius in one step).
+
+Censoring: a trial that never reaches p within its budget has no step count for p. Tables give
+the reach rate (with a Wilson 95 % interval) and the mean steps over the trials that reached p;
+the t-tests on steps to p count an unreached trial as budget + 1 steps (a lower bound of its
+true value, so differences in steps are if anything understated).
+"""
+
+from typing import Dict, List, Mapping, Optional, Sequence
+
+from attention_bringup.study import stats
+from attention_bringup.study.trials import is_usable, POSITIONS
+
+BASELINE = 'vanilla'
+TESTED_POSITIONS = (1, 2, 3)
+"""Positions whose steps-to-reach are t-tested (the thesis's figures show 1 to 3)."""
+MEASURES = ('furthest_position',) + tuple(f'steps_to_{p}' for p in TESTED_POSITIONS)
+
+
+def progress_step(record: Mapping, position: int) -> Optional[int]:
+    """Return the first step at which the agent stood on ``position`` or a later one."""
+    steps = [step for p, step in record['first_step_at_position'].items()
+             if int(p) >= position and step is not None]
+    return min(steps) if steps else None
+
+
+def censored_steps(record: Mapping, position: int) -> int:
+    """Return steps to reach ``position``, or budget + 1 when it was never reached."""
+    step = progress_step(record, position)
+    return record['budget'] + 1 if step is None else step
+
+
+def _estimate(values: Sequence[float]) -> dict:
+    estimate = stats.mean_ci(values)
+    return {'n': estimate.n, 'mean': estimate.mean, 'sd': estimate.sd,
+            'ci_low': estimate.low, 'ci_high': estimate.high}
+
+
+def _proportion(successes: int, n: int) -> dict:
+    low, high = stats.wilson_interval(successes, n)
+    return {'k': successes, 'n': n, 'rate': successes / n if n else None,
+            'ci_low': low, 'ci_high': high}
+
+
+def _median(values: Sequence[float]) -> Optional[float]:
+    ordered = sorted(values)
+    if not ordered:
+        return None
+    middle = len(ordered) // 2
+    return float(ordered[middle]) if len(ordered) % 2 else (ordered[middle - 1]
+                                                            + ordered[middle]) / 2.0
+
+
+def step_grid(budget: int, points: int = 101) -> List[int]:
+    """Return ``points`` evenly spaced steps from 0 to budget."""
+    return sorted({round(budget * i / (points - 1)) for i in range(points)})
+
+
+def reach_curve(records: Sequence[Mapping], position: int, grid: Sequence[int]) -> dict:
+    """Fraction of trials with progress to ``position`` by each step, with Wilson 95 % bands."""
+    firsts = [progress_step(record, position) for record in records]
+    n = len(records)
+    fraction, low, high = [], [], []
+    for step in grid:
+        k = sum(1 for first in firsts if first is not None and first <= step)
+        interval = stats.wilson_interval(k, n)
+        fraction.append(k / n if n else None)
+        low.append(interval[0])
+        high.append(interval[1])
+    return {'steps': list(grid), 'fraction': fraction, 'ci_low': low, 'ci_high': high, 'n': n}
+
+
+def furthest_curve(records: Sequence[Mapping]) -> dict:
+    """Mean furthest position over steps, with t-based 95 % bands."""
+    if not records:
+        return {'steps': [], 'mean': [], 'ci_low': [], 'ci_high': [], 'n': 0}
+    every = records[0]['curve_every']
+    length = min(len(record['furthest_curve']) for record in records)
+    budget = records[0]['budget']
+    steps = [min(i * every, budget) for i in range(length)]
+    means, lows, highs = [], [], []
+    for i in range(length):
+        estimate = stats.mean_ci([record['furthest_curve'][i] for record in records])
+        means.append(estimate.mean)
+        lows.append(estimate.low if estimate.low is not None else estimate.mean)
+        highs.append(estimate.high if estimate.high is not None else estimate.mean)
+    return {'steps': steps, 'mean': means, 'ci_low': lows, 'ci_high': highs, 'n': len(records)}
+
+
+def summarize_condition(condition: str, records: Sequence[Mapping]) -> dict:
+    """Aggregate one condition's trials (only those whose whole budget was recorded)."""
+    usable = [record for record in records if is_usable(record)]
+    outcomes: Dict[str, int] = {}
+    for record in records:
+        outcomes[record['outcome']] = outcomes.get(record['outcome'], 0) + 1
+    n = len(usable)
+    steps_to = {}
+    for position in POSITIONS:
+        reached = [progress_step(r, position) for r in usable
+                   if progress_step(r, position) is not None]
+        steps_to[str(position)] = {
+            'reach': _proportion(len(reached), n),
+            'reachers': _estimate(reached),
+            'median_reachers': _median(reached),
+            'censored': _estimate([censored_steps(r, position) for r in usable]),
+        }
+    return {
+        'condition': condition,
+        'trials': len(records),
+        'usable': n,
+        'seeds': [record['seed'] for record in usable],
+        'outcomes': outcomes,
+        'furthest_position': _estimate([r['furthest_position'] for r in usable]),
+        'furthest_counts': {str(p): sum(1 for r in usable if r['furthest_position'] == p)
+                            for p in (-1,) + POSITIONS},
+        'steps_to': steps_to,
+        'key': _proportion(sum(1 for r in usable if r['key']), n),
+        'episodes': _estimate([r['episodes'] for r in usable]),
+        'lives_lost': _estimate([r['lives_lost'] for r in usable]),
+        'wall_time_s': _estimate([r['wall_time_s'] for r in usable]),
+        'updates_per_step': _estimate([r['learner_updates'] / r['steps'] for r in usable
+                                       if r.get('learner_updates') is not None and r['steps']]),
+    }
+
+
+def measure_values(records: Sequence[Mapping], measure: str) -> List[float]:
+    usable = [record for record in records if is_usable(record)]
+    if measure == 'furthest_position':
+        return [record['furthest_position'] for record in usable]
+    position = int(measure.rsplit('_', 1)[1])
+    return [censored_steps(record, position) for record in usable]
+
+
+def compare_to_baseline(by_condition: Mapping[str, Sequence[Mapping]],
+                        baseline: str = BASELINE) -> List[dict]:
+    """Welch t-tests of every other condition against the baseline, Holm-adjusted together."""
+    tests = []
+    base = by_condition.get(baseline, [])
+    for condition, records in by_condition.items():
+        if condition == baseline:
+            continue
+        for measure in MEASURES:
+            result = stats.welch_t_test(measure_values(records, measure),
+                                        measure_values(base, measure))
+            tests.append({'condition': condition, 'measure': measure,
+                          **{key: getattr(result, key) for key in (
+                              'n_a', 'n_b', 'mean_a', 'mean_b', 'difference', 't', 'df', 'p',
+                              'hedges_g', 'cohens_d', 'note')}})
+    for test, adjusted in zip(tests, stats.holm_adjust([t['p'] for t in tests])):
+        test['p_holm'] = adjusted
+    return tests
+
+
+def analyse(by_condition: Mapping[str, Sequence[Mapping]]) -> dict:
+    """Everything the figures and the report use, for the given conditions' result files."""
+    budgets = {record['budget'] for records in by_condition.values() for record in records}
+    if len(budgets) > 1:
+        raise ValueError(f'trial files with different budgets ({sorted(budgets)}) in one study; '
+                         'keep each budget in its own --out folder')
+    budget = budgets.pop() if budgets else 0
+    grid = step_grid(budget) if budget else []
+    conditions = {}
+    for condition, records in by_condition.items():
+        usable = [record for record in records if is_usable(record)]
+        summary = summarize_condition(condition, records)
+        summary['reach_curves'] = {str(p): reach_curve(usable, p, grid) for p in POSITIONS}
+        summary['furthest_curve'] = furthest_curve(usable)
+        conditions[condition] = summary
+    return {
+        'budget': budget,
+        'conditions': conditions,
+        'tests': compare_to_baseline(by_condition) if BASELINE in by_condition else [],
+        'problems': [
+            {key: record.get(key) for key in ('condition', 'seed', 'outcome', 'exit_code',
+                                              'steps', 'launcher_status', 'problem')}
+            for records in by_condition.values() for record in records
+            if record['outcome'] != 'completed'],
+    }

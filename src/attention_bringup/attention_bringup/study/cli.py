@@ -1,0 +1,246 @@
+"""
+``attention_study``: run the thesis's chapter 5 study and write its report.
+
+Runs every condition's trials through ``attention_train`` (seed = trial index), keeps one small
+result file per trial under ``<out>/trials/``, then draws the figures into ``<out>/`` and writes
+the report. Trials whose result file exists are skipped, so the same command resumes. With
+``--analyze-only`` it only redraws the figures and rewrites the report from the result files.
+
+Exit code: 0 when the report was written (crashed trials are in it); 2 for bad options or
+result files; 130 when interrupted (finished trials are kept).
+"""
+
+import argparse
+import datetime
+import json
+import os
+from pathlib import Path
+import shlex
+import signal
+import sys
+import threading
+import time
+from typing import List, Optional, Sequence
+
+from attention_bringup.graph import CONDITIONS
+from attention_bringup.study import analysis as study_analysis
+from attention_bringup.study import figures, report, runner
+from attention_bringup.study.trials import is_usable, load_records, write_json
+
+DEFAULT_TRIALS = 10
+DEFAULT_STEPS = 10000
+DEFAULT_OUT = 'docs/study'
+DEFAULT_REPORT = 'docs/results.md'
+DEFAULT_RUNS = 'runs/study'
+LOG_FILE = 'study_log.json'
+ANALYSIS_FILE = 'analysis.json'
+EXIT_INTERRUPTED = 130
+
+
+def _positive_int(text: str) -> int:
+    value = int(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError(f'must be at least 1, got {value}')
+    return value
+
+
+def argument_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog='attention_study',
+        description='Run the study of thesis chapter 5 (every condition, N seeded trials of the '
+                    'real node graph), analyse it and write the report. Existing trial results '
+                    'are skipped, so an interrupted study resumes with the same command.')
+    parser.add_argument('--conditions', nargs='+', choices=CONDITIONS, default=list(CONDITIONS),
+                        metavar='NAME', help=f'conditions (default all: {" ".join(CONDITIONS)})')
+    parser.add_argument('--trials', type=_positive_int, default=DEFAULT_TRIALS,
+                        help=f'trials per condition, seeds 0..N-1 (default {DEFAULT_TRIALS})')
+    parser.add_argument('--steps', type=_positive_int, default=DEFAULT_STEPS,
+                        help=f'agent steps per trial (default {DEFAULT_STEPS})')
+    parser.add_argument('--parallel', type=_positive_int, default=1,
+                        help='trials run side by side (default 1; each is 4 node processes)')
+    parser.add_argument('--out', default=DEFAULT_OUT,
+                        help=f'folder of trial results and figures (default {DEFAULT_OUT})')
+    parser.add_argument('--report', default=DEFAULT_REPORT,
+                        help=f'report file (default {DEFAULT_REPORT})')
+    parser.add_argument('--runs-dir', default=None,
+                        help=f"where the trials' full run folders go (large, not for "
+                             f'committing; default {DEFAULT_RUNS} with the default --out, '
+                             'else <out>/runs)')
+    parser.add_argument('--analyze-only', action='store_true',
+                        help='run no trials; redraw figures and rewrite the report')
+    parser.add_argument('--retry-crashed', action='store_true',
+                        help='re-run trials recorded as crashed or timed out (their old result '
+                             'files move to trials/<condition>/retried/ and stay in the report)')
+    parser.add_argument('--trial-timeout', type=float, default=0.0, metavar='S',
+                        help='wall seconds before a trial is stopped and recorded as timed out '
+                             '(default 0: 1800 + 1 s per step)')
+    return parser
+
+
+def default_runs_dir(out: str) -> str:
+    return DEFAULT_RUNS if out == DEFAULT_OUT else str(Path(out) / 'runs')
+
+
+def regenerate_command(options: argparse.Namespace, parallel: int) -> str:
+    words = ['.venv/bin/attention_study']
+    if list(options.conditions) != list(CONDITIONS):
+        words += ['--conditions', *options.conditions]
+    words += ['--trials', str(options.trials), '--steps', str(options.steps),
+              '--parallel', str(parallel), '--out', options.out, '--report', options.report]
+    if options.runs_dir != default_runs_dir(options.out):
+        words += ['--runs-dir', options.runs_dir]
+    return ' '.join(shlex.quote(word) for word in words)
+
+
+def read_log(out_dir: Path) -> List[dict]:
+    try:
+        return json.loads((out_dir / LOG_FILE).read_text())
+    except (OSError, ValueError):
+        return []
+
+
+def _say(text: str) -> None:
+    sys.stderr.write(f'attention_study: {text}\n')
+    sys.stderr.flush()
+
+
+class _Progress:
+    """Prints one line per finished trial, with an estimate of the time left."""
+
+    def __init__(self, total: int, parallel: int):
+        self.total, self.parallel = total, parallel
+        self.started = time.monotonic()
+        self.done = 0
+
+    def __call__(self, job: runner.TrialJob, record: Optional[dict], finished: int) -> None:
+        if record is None:
+            _say(f'{job.condition} seed {job.seed}: interrupted (no result file; runs again '
+                 'next time)')
+            return
+        self.done += 1
+        elapsed = time.monotonic() - self.started
+        left = (self.total - self.done) * elapsed / self.done
+        _say(f'[{self.done}/{self.total}] {job.condition} seed {job.seed}: '
+             f'{record["outcome"]}, {record["steps"]} steps in {record["wall_time_s"]:.0f} s, '
+             f'furthest position {record["furthest_position"]}, key {record["key"]} '
+             f'(about {left / 60:.0f} min left)')
+
+
+def run_study(options: argparse.Namespace, out_dir: Path) -> Optional[dict]:
+    """Run the pending trials; return the log entry (None if there was nothing to run)."""
+    jobs, kept = runner.plan_trials(options.conditions, options.trials, options.steps, out_dir,
+                                    Path(options.runs_dir).resolve(), options.retry_crashed)
+    if kept:
+        _say(f'{len(kept)} trial(s) already have results: skipped')
+    if not jobs:
+        return None
+    launcher = Path(sys.executable).parent / 'attention_train'
+    if not os.access(launcher, os.X_OK):
+        raise FileNotFoundError(f'{launcher} not found (run make setup)')
+    timeout = options.trial_timeout or runner.auto_timeout_s(options.steps)
+    _say(f'running {len(jobs)} trial(s) of {options.steps} steps, {options.parallel} at a '
+         f'time; run folders in {options.runs_dir}')
+    stop = threading.Event()
+    previous = signal.signal(signal.SIGTERM, lambda *_: stop.set())
+    started_at = datetime.datetime.now().isoformat(timespec='seconds')
+    started = time.monotonic()
+    records: List[dict] = []
+    box = {}
+    # The main thread waits on an Event, not Thread.join: a join interrupted by Ctrl-C can leave
+    # is_alive() False while the thread still runs (Python 3.11), and the trials would be lost.
+    done = threading.Event()
+
+    def work() -> None:
+        try:
+            box['records'] = runner.run_trials(jobs, launcher, options.parallel, timeout, stop,
+                                               _Progress(len(jobs), options.parallel))
+        finally:
+            done.set()
+
+    threading.Thread(target=work, name='trials', daemon=True).start()
+    try:
+        while not done.wait(timeout=0.5):
+            pass
+    except KeyboardInterrupt:
+        _say('interrupted: stopping the running trials (each launcher stops its nodes)...')
+        stop.set()
+        while not done.is_set():
+            try:
+                done.wait(timeout=0.5)
+            except KeyboardInterrupt:
+                _say('still stopping; the launchers get SIGTERM after '
+                     f'{runner.STOP_GRACE_S:.0f} s')
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+    records = box.get('records', [])
+    entry = {
+        'argv': sys.argv[1:],
+        'started_at': started_at,
+        'wall_time_s': round(time.monotonic() - started, 1),
+        'parallel': options.parallel,
+        'steps': options.steps,
+        'cpus': os.cpu_count(),
+        'trials_run': len(records),
+        'trials_crashed': sum(1 for r in records if not is_usable(r)),
+        'trials_skipped': len(kept),
+        'interrupted': stop.is_set(),
+    }
+    log = read_log(out_dir) + [entry]
+    write_json(out_dir / LOG_FILE, log)
+    return entry
+
+
+def analyse_and_report(options: argparse.Namespace, out_dir: Path) -> dict:
+    """Load the result files, write analysis.json, the figures and the report."""
+    found = load_records(out_dir, options.conditions)
+    by_condition = {c: [r for r in found[c] if r['seed'] < options.trials]
+                    for c in options.conditions}
+    result = study_analysis.analyse(by_condition)
+    if by_condition and any(by_condition.values()) and result['budget'] != options.steps:
+        raise ValueError(f'the result files in {out_dir} are of {result["budget"]} steps; '
+                         f'pass --steps {result["budget"]}')
+    drawn = figures.draw_all(result, out_dir)
+    compact = {key: value for key, value in result.items() if key != 'conditions'}
+    compact['conditions'] = {
+        c: {k: v for k, v in s.items() if k not in ('reach_curves', 'furthest_curve')}
+        for c, s in result['conditions'].items()}
+    write_json(out_dir / ANALYSIS_FILE, compact)
+    log = [e for e in read_log(out_dir) if e.get('steps') == options.steps]
+    ran = [e for e in log if e.get('trials_run')]
+    parallel = ran[-1]['parallel'] if ran else options.parallel
+    warmups = {r.get('parameters', {}).get('env_node.warmup_steps')
+               for records in by_condition.values() for r in records}
+    protocol = {'conditions': list(options.conditions), 'trials': options.trials,
+                'steps': options.steps,
+                'warmup_steps': sorted(w for w in warmups if w is not None)}
+    report.write_report(Path(options.report), result, by_condition, protocol, drawn,
+                        regenerate_command(options, parallel), log,
+                        runner.load_retired(out_dir, options.conditions), os.cpu_count(),
+                        f'{options.out.rstrip("/")}/trials')
+    return result
+
+
+def main(argv: Optional[Sequence[str]] = None) -> int:
+    options = argument_parser().parse_args(argv)
+    options.conditions = list(dict.fromkeys(options.conditions))
+    if options.runs_dir is None:
+        options.runs_dir = default_runs_dir(options.out)
+    out_dir = Path(options.out).resolve()
+    interrupted = False
+    try:
+        if not options.analyze_only:
+            entry = run_study(options, out_dir)
+            interrupted = bool(entry and entry['interrupted'])
+        result = analyse_and_report(options, out_dir)
+    except (ValueError, FileNotFoundError) as error:
+        _say(str(error))
+        return 2
+    usable = sum(s['usable'] for s in result['conditions'].values())
+    problems = len(result['problems'])
+    _say(f'report {options.report}: {usable} full trial(s), {problems} with problems; '
+         f'figures in {options.out}')
+    return EXIT_INTERRUPTED if interrupted else 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

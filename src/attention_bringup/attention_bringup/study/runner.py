@@ -1,0 +1,174 @@
+"""
+Run a study's trials: each one ``attention_train`` subprocess, up to ``parallel`` at a time.
+
+Trials are planned seed by seed across conditions (seed 0 of every condition first), so an
+interrupted study is balanced. A trial whose result file exists is skipped; a crashed trial
+keeps its result file (and is re-run only with ``retry_crashed``, its old file moved to
+``trials/<condition>/retried/``). On Ctrl-C or SIGTERM every running launcher gets one SIGINT
+(it stops its nodes cleanly); interrupted trials write no result file and run again next time.
+"""
+
+from dataclasses import dataclass
+import datetime
+from pathlib import Path
+import shutil
+import signal
+import subprocess
+import threading
+import time
+from typing import Callable, List, Optional, Sequence, Tuple
+
+from attention_bringup.study.trials import (
+    build_record, is_usable, LAUNCHER_LOG, read_json, trial_path, write_json)
+from attention_common.isolation import isolated_environ
+
+STOP_GRACE_S = 90.0
+"""After its SIGINT, how long a launcher may take to stop its nodes before SIGTERM."""
+
+
+@dataclass(frozen=True)
+class TrialJob:
+    """One trial to run."""
+
+    condition: str
+    seed: int
+    steps: int
+    result_path: Path
+    run_dir: Path
+
+
+def auto_timeout_s(steps: int) -> float:
+    """Backstop per trial (the launcher itself gives up after 2 min without a step)."""
+    return 1800.0 + 1.0 * steps
+
+
+def plan_trials(conditions: Sequence[str], trials: int, steps: int, out_dir: Path,
+                runs_dir: Path, retry_crashed: bool = False
+                ) -> Tuple[List[TrialJob], List[Path]]:
+    """
+    Return (trials to run, result files that exist and are kept).
+
+    A result file of another budget raises ``ValueError`` (one budget per ``out_dir``); an
+    unreadable one too (it is not silently overwritten).
+    """
+    pending, kept = [], []
+    for seed in range(trials):
+        for condition in conditions:
+            path = trial_path(out_dir, condition, seed)
+            run_dir = Path(runs_dir) / condition / f'seed{seed}'
+            job = TrialJob(condition, seed, steps, path, run_dir)
+            if not path.exists():
+                pending.append(job)
+                continue
+            record = read_json(path)
+            if record is None:
+                raise ValueError(f'{path} exists but is not valid JSON; delete it to re-run')
+            if record.get('budget') != steps:
+                raise ValueError(f'{path} holds a trial of {record.get("budget")} steps, not '
+                                 f'{steps}; use another --out for another budget')
+            if retry_crashed and not is_usable(record):
+                retire(path)
+                pending.append(job)
+            else:
+                kept.append(path)
+    return pending, kept
+
+
+def retire(path: Path) -> Path:
+    """Move a crashed trial's result file to ``retried/`` (kept for the report)."""
+    folder = path.parent / 'retried'
+    folder.mkdir(exist_ok=True)
+    n = 1
+    while (folder / f'{path.stem}-attempt{n}.json').exists():
+        n += 1
+    target = folder / f'{path.stem}-attempt{n}.json'
+    path.replace(target)
+    return target
+
+
+def load_retired(out_dir: Path, conditions: Sequence[str]) -> List[dict]:
+    records = []
+    for condition in conditions:
+        for path in sorted((Path(out_dir) / 'trials' / condition / 'retried').glob('*.json')):
+            record = read_json(path)
+            if record is not None:
+                records.append(record)
+    return records
+
+
+def launcher_command(launcher: Path, job: TrialJob) -> List[str]:
+    return [str(launcher), '--steps', str(job.steps), '--condition', job.condition,
+            '--seed', str(job.seed), '--run-dir', str(job.run_dir), '--quiet']
+
+
+def _signal(process: subprocess.Popen, sig: signal.Signals) -> None:
+    try:
+        process.send_signal(sig)
+    except ProcessLookupError:
+        pass
+
+
+def run_trial(job: TrialJob, launcher: Path, stop: threading.Event, timeout_s: float,
+              parallel: int = 1) -> Optional[dict]:
+    """Run one trial to its end and write its result file; None if the study was stopped."""
+    if job.run_dir.exists():  # left by an interrupted attempt: its data is not a result
+        shutil.rmtree(job.run_dir)
+    job.run_dir.mkdir(parents=True)
+    started_at = datetime.datetime.now().isoformat(timespec='seconds')
+    started = time.monotonic()
+    # The launcher reserves its own ROS domain; localhost discovery for anything it inherits.
+    environ = isolated_environ(0)
+    environ.pop('ROS_DOMAIN_ID')
+    with open(job.run_dir / LAUNCHER_LOG, 'wb') as log:
+        process = subprocess.Popen(launcher_command(launcher, job), stdin=subprocess.DEVNULL,
+                                   stdout=log, stderr=subprocess.STDOUT, env=environ,
+                                   start_new_session=True)
+        interrupted_at, timed_out = None, False
+        escalation = iter((signal.SIGTERM, signal.SIGKILL))
+        while process.poll() is None:
+            now = time.monotonic()
+            if interrupted_at is None and (stop.is_set() or now - started > timeout_s):
+                timed_out = not stop.is_set()
+                interrupted_at = now
+                _signal(process, signal.SIGINT)
+            elif interrupted_at is not None and now - interrupted_at > STOP_GRACE_S:
+                _signal(process, next(escalation, signal.SIGKILL))
+                interrupted_at = now - STOP_GRACE_S + 10.0
+            time.sleep(0.25)
+    if stop.is_set() and not timed_out:
+        return None
+    record = build_record(job.condition, job.seed, job.steps, job.run_dir, process.returncode,
+                          time.monotonic() - started, timed_out=timed_out,
+                          started_at=started_at, parallel=parallel)
+    write_json(job.result_path, record)
+    return record
+
+
+def run_trials(jobs: Sequence[TrialJob], launcher: Path, parallel: int, timeout_s: float,
+               stop: threading.Event,
+               report: Callable[[TrialJob, Optional[dict], int], None]) -> List[dict]:
+    """Run ``jobs`` with ``parallel`` workers until done or ``stop`` is set."""
+    queue = list(jobs)
+    lock = threading.Lock()
+    records: List[dict] = []
+
+    def worker() -> None:
+        while not stop.is_set():
+            with lock:
+                if not queue:
+                    return
+                job = queue.pop(0)
+            record = run_trial(job, launcher, stop, timeout_s, parallel)
+            with lock:
+                if record is not None:
+                    records.append(record)
+                report(job, record, len(records))
+
+    threads = [threading.Thread(target=worker, name=f'trial-worker-{i}', daemon=True)
+               for i in range(max(1, parallel))]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        while thread.is_alive():
+            thread.join(timeout=0.5)
+    return records

@@ -1,0 +1,249 @@
+"""
+One trial's compact result file, built from the run folder ``attention_train`` left (pure).
+
+A result file (``<out>/trials/<condition>/seed<k>.json``, a few kB) keeps what the analysis
+needs: the outcome, the first step at which each critical position was visited, the furthest
+position every ``CURVE_EVERY`` steps, key pick-ups, episodes, lives lost, wall time, the
+parameters that define the condition, and for a trial that did not finish cleanly the tail of
+its logs. Steps are agent steps after the warm-up (``agent_step`` of ``env_status``: 0 is the
+first step the agent chooses).
+"""
+
+import csv
+import json
+import os
+from pathlib import Path
+from typing import Dict, List, Mapping, Optional, Sequence
+
+from attention_bringup.params import load_params_file, node_params, ParamsFileError
+
+FORMAT = 1
+"""Version of the result file layout."""
+POSITIONS = tuple(range(6))
+"""The critical positions 0..5."""
+CURVE_EVERY = 100
+"""Agent steps between two points of the stored furthest-position curve."""
+TAIL_CHARS = 2500
+"""Longest log tail kept in a result file."""
+
+COMPLETED = 'completed'
+COMPLETED_UNCLEAN = 'completed_unclean'
+CRASHED = 'crashed'
+TIMEOUT = 'timeout'
+USABLE_OUTCOMES = (COMPLETED, COMPLETED_UNCLEAN)
+"""Outcomes whose full budget of steps was recorded (the analysis uses these)."""
+
+LAUNCHER_LOG = 'attention_train.log'
+"""The launcher's own terminal output, in the run folder."""
+
+# (node, parameter) pairs copied into the result file: what defines a condition and a trial.
+RECORDED_PARAMETERS = (
+    ('env_node', 'seed'), ('env_node', 'warmup_steps'), ('env_node', 'max_steps'),
+    ('env_node', 'frameskip'), ('env_node', 'sticky_actions'),
+    ('feedback_node', 'utterance_interval'), ('feedback_node', 'reward_variant'),
+    ('saliency_node', 'mode'), ('saliency_node', 'require_utterance'),
+    ('tamer_node', 'alpha'), ('tamer_node', 'input_image'), ('tamer_node', 'credit'),
+    ('tamer_node', 'seed'),
+)
+
+
+def trial_path(out_dir: Path, condition: str, seed: int) -> Path:
+    return Path(out_dir) / 'trials' / condition / f'seed{seed}.json'
+
+
+def read_json(path: Path) -> Optional[dict]:
+    """Return the parsed file, or None when it is missing or not valid JSON."""
+    try:
+        return json.loads(Path(path).read_text())
+    except (OSError, ValueError):
+        return None
+
+
+def write_json(path: Path, data: Mapping) -> None:
+    """Write atomically (a study killed mid-write leaves no half file to be skipped later)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(path.suffix + '.tmp')
+    tmp.write_text(json.dumps(data, indent=1) + '\n')
+    tmp.replace(path)
+
+
+def _as_int(text: str, default: int = -1) -> int:
+    try:
+        return int(float(text))
+    except (TypeError, ValueError):
+        return default
+
+
+def read_progress(path: Path) -> List[Dict[str, int]]:
+    """Read the columns of ``progress.csv`` the study needs, as ints; [] if there is no file."""
+    columns = ('agent_step', 'position', 'furthest_position', 'episode', 'lives', 'has_key')
+    try:
+        with open(path, newline='') as handle:
+            return [{name: _as_int(row.get(name)) for name in columns}
+                    for row in csv.DictReader(handle)]
+    except OSError:
+        return []
+
+
+def first_visits(rows: Sequence[Mapping[str, int]]) -> Dict[int, Optional[int]]:
+    """Return the first agent step at which each critical position was stood on (None: never)."""
+    first: Dict[int, Optional[int]] = dict.fromkeys(POSITIONS)
+    for row in rows:
+        position = row['position']
+        if position in first and first[position] is None:
+            first[position] = row['agent_step']
+    return first
+
+
+def furthest_curve(rows: Sequence[Mapping[str, int]], budget: int,
+                   every: int = CURVE_EVERY) -> List[Optional[int]]:
+    """Furthest position so far at steps 0, every, 2 every, ..., budget (None after the data)."""
+    points = list(range(0, budget + 1, every))
+    if points[-1] != budget:
+        points.append(budget)
+    curve: List[Optional[int]] = []
+    index, furthest = 0, -1
+    last_step = rows[-1]['agent_step'] if rows else -1
+    for step in points:
+        while index < len(rows) and rows[index]['agent_step'] <= step:
+            furthest = max(furthest, rows[index]['furthest_position'], rows[index]['position'])
+            index += 1
+        curve.append(furthest if step <= last_step else None)
+    return curve
+
+
+def lives_lost_in(rows: Sequence[Mapping[str, int]]) -> int:
+    """Count drops of ``lives`` between consecutive steps of the same episode."""
+    lost = 0
+    for before, after in zip(rows, rows[1:]):
+        if (before['episode'] == after['episode'] and before['lives'] >= 0
+                and 0 <= after['lives'] < before['lives']):
+            lost += before['lives'] - after['lives']
+    return lost
+
+
+def key_pickups_in(rows: Sequence[Mapping[str, int]]) -> int:
+    """Count steps at which ``has_key`` turned on."""
+    pickups, had = 0, False
+    for row in rows:
+        has = row['has_key'] == 1
+        pickups += int(has and not had)
+        had = has
+    return pickups
+
+
+def recorded_parameters(params_path: Path) -> Dict[str, object]:
+    """Return the condition-defining parameters from a run's ``params.yaml`` ({} if unreadable)."""
+    try:
+        graph = load_params_file(params_path)
+    except ParamsFileError:
+        return {}
+    values = {}
+    for node, name in RECORDED_PARAMETERS:
+        value = node_params(graph, node).get(name)
+        if value is not None:
+            values[f'{node}.{name}'] = value
+    return values
+
+
+def display_path(path: Path) -> str:
+    """Return ``path`` relative to the working directory when it lies inside it."""
+    relative = os.path.relpath(Path(path).resolve(), Path.cwd())
+    return str(Path(path).resolve()) if relative.startswith('..') else relative
+
+
+def tail(text: str, chars: int = TAIL_CHARS) -> str:
+    return text if len(text) <= chars else '...' + text[-chars:]
+
+
+def read_tail(path: Path, chars: int = TAIL_CHARS) -> str:
+    try:
+        with open(path, 'rb') as handle:
+            handle.seek(0, 2)
+            handle.seek(max(0, handle.tell() - 4 * chars))
+            return tail(handle.read().decode(errors='replace'), chars)
+    except OSError:
+        return ''
+
+
+def outcome_of(summary: Optional[Mapping], steps: int, budget: int, exit_code: Optional[int],
+               timed_out: bool) -> str:
+    """Classify a trial: completed, completed_unclean (budget done, unclean exit), crashed..."""
+    if timed_out:
+        return TIMEOUT
+    if summary is None or steps < budget:
+        return CRASHED
+    if exit_code == 0 and summary.get('status') == 'completed':
+        return COMPLETED
+    return COMPLETED_UNCLEAN
+
+
+def build_record(condition: str, seed: int, budget: int, run_dir: Path,
+                 exit_code: Optional[int], wall_time_s: float, timed_out: bool = False,
+                 started_at: str = '', parallel: int = 1) -> dict:
+    """Summarize one finished (or failed) trial's run folder as a result-file dict."""
+    run_dir = Path(run_dir)
+    summary = read_json(run_dir / 'summary.json')
+    rows = read_progress(run_dir / 'progress.csv')
+    steps = rows[-1]['agent_step'] if rows else 0
+    outcome = outcome_of(summary, steps, budget, exit_code, timed_out)
+    first = first_visits(rows)
+    visited = [position for position, step in first.items() if step is not None]
+    keys = key_pickups_in(rows)
+    summary = summary or {}
+    record = {
+        'format': FORMAT,
+        'condition': condition,
+        'seed': seed,
+        'budget': budget,
+        'outcome': outcome,
+        'exit_code': exit_code,
+        'launcher_status': summary.get('status'),
+        'steps': steps,
+        'wall_time_s': round(wall_time_s, 1),
+        'training_steps_per_s': summary.get('steps_per_s'),
+        'started_at': started_at,
+        'parallel': parallel,
+        'furthest_position': max(visited) if visited else -1,
+        'first_step_at_position': {str(p): step for p, step in first.items()},
+        'key_pickups': keys,
+        'key': keys > 0,
+        'episodes': summary.get('episodes', len({row['episode'] for row in rows})),
+        'lives_lost': summary.get('lives_lost', lives_lost_in(rows)),
+        'feedback_count': summary.get('feedback_count'),
+        'utterance_count': summary.get('utterance_count'),
+        'saliency_count': summary.get('message_counts', {}).get('saliency'),
+        'learner_updates': summary.get('metrics', {}).get('train/updates'),
+        'parameters': recorded_parameters(run_dir / 'params.yaml'),
+        'curve_every': CURVE_EVERY,
+        'furthest_curve': furthest_curve(rows, budget),
+        'run_dir': display_path(run_dir),
+        'problem': None,
+    }
+    if outcome != COMPLETED:
+        failed = summary.get('failed_node')
+        record['problem'] = {
+            'exit_text': summary.get('exit_text'),
+            'failed_node': failed,
+            'launcher_output_tail': read_tail(run_dir / LAUNCHER_LOG),
+            'node_log_tail': read_tail(run_dir / 'logs' / f'{failed}.log') if failed else '',
+        }
+    return record
+
+
+def is_usable(record: Mapping) -> bool:
+    return record.get('outcome') in USABLE_OUTCOMES
+
+
+def load_records(out_dir: Path, conditions: Sequence[str]) -> Dict[str, List[dict]]:
+    """Return every result file under ``<out>/trials/<condition>/``, sorted by seed."""
+    found: Dict[str, List[dict]] = {}
+    for condition in conditions:
+        records = []
+        for path in sorted((Path(out_dir) / 'trials' / condition).glob('seed*.json')):
+            record = read_json(path)
+            if record is None or record.get('format') != FORMAT:
+                raise ValueError(f'{path}: not a trial result file of format {FORMAT}')
+            records.append(record)
+        found[condition] = sorted(records, key=lambda r: r['seed'])
+    return found
