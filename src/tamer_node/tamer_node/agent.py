@@ -1,0 +1,306 @@
+"""
+TamerAgent: everything tamer_node does, without ROS (the node converts messages and calls it).
+
+Acting: ``on_observation`` (and ``on_saliency`` with ``input_image: saliency``) returns the
+greedy action for that step at once. Learning runs on the learner thread (worker.py, which
+states the concurrency contract). Everything a person gives is on disk before it is used
+(persistence.py).
+"""
+
+import collections
+import math
+from pathlib import Path
+import sys
+import threading
+import time
+from typing import Callable, Optional
+
+import cv2
+import numpy as np
+from tamer_node.buffer import FeedbackBuffer
+from tamer_node.config import TamerConfig
+from tamer_node.history import StepHistory
+from tamer_node.learner import Learner
+from tamer_node.model import Encoder, HModel, load_encoder, preprocess
+from tamer_node.persistence import (
+    CHECKPOINT_DIR, DiskWriter, FEEDBACK_LOG, FeedbackLog, json_number, KIND_ACTION,
+    KIND_OBSERVATION, KIND_SALIENCY, load_checkpoint, METRICS_CSV, MetricsCsv, StepJournal,
+    STEPS_DIR)
+from tamer_node.worker import ActingModel, FeedbackEvent, LearnerWorker, SnapshotSlot
+import torch
+
+DEFAULT_ENCODER = Path(__file__).resolve().parent / 'weights' / 'encoder.pt'
+MAX_UTTERANCE_CHARS = 10_000
+HOW_TO_BUILD_ENCODER = ('build it with `tamer_pretrain` (writes tamer_node/weights/encoder.pt, '
+                        'a few minutes on one core) or set encoder_path')
+
+
+class BadInput(ValueError):
+    """A message the agent cannot use; it was counted and dropped."""
+
+
+def share_the_cpu(switch_interval_s: float = 0.0005) -> None:
+    """
+    Set this process up for a shared 2-core machine: one thread per torch op and OpenCV call.
+
+    Python hands the GIL to a waiting thread only every ``sys.getswitchinterval()`` (5 ms by
+    default); a shorter interval keeps the acting path from waiting that long behind the
+    learner's Python code.
+    """
+    torch.set_num_threads(1)
+    cv2.setNumThreads(1)
+    sys.setswitchinterval(switch_interval_s)
+
+
+def default_run_dir() -> Path:
+    """Return a new dated folder under ~/.ros/tamer_node/runs."""
+    return Path.home() / '.ros' / 'tamer_node' / 'runs' / time.strftime('%Y%m%d-%H%M%S')
+
+
+def resolve_encoder(path: str) -> Path:
+    """Return the encoder file to load: ``path``, or the shipped one when empty."""
+    return Path(path).expanduser() if path else DEFAULT_ENCODER
+
+
+class TamerAgent:
+    """Deep TAMER with the saliency L2 term: acts greedily, learns on its own thread."""
+
+    def __init__(self, config: TamerConfig, run_dir: Path, encoder: Optional[Encoder] = None,
+                 log: Optional[Callable[[str, str], None]] = None):
+        config.validate()
+        self.config = config
+        self.run_dir = Path(run_dir)
+        self._log = log or (lambda level, text: None)
+        if encoder is None:
+            encoder_file = resolve_encoder(config.encoder_path)
+            if not encoder_file.exists():
+                raise FileNotFoundError(
+                    f'encoder weights {encoder_file} are missing: {HOW_TO_BUILD_ENCODER}')
+            encoder = load_encoder(encoder_file)
+        self._check_run_dir()
+        torch.manual_seed(config.seed)
+        model = HModel(config.head_hidden, freeze_encoder=not config.fine_tune_encoder,
+                       encoder=encoder)
+        self.learner = Learner(model, config.learning_rate, config.alpha)
+        self.actor = ActingModel(model)
+        self.slot = SnapshotSlot()
+        self.buffer = FeedbackBuffer(config.buffer_capacity)
+        self.history = StepHistory(config.history_steps)
+        steps_dir = self.run_dir / STEPS_DIR
+        self.journal = StepJournal(steps_dir, StepJournal.last_segment(steps_dir) + 1)
+        self.feedback_log = FeedbackLog(self.run_dir / FEEDBACK_LOG)
+        self.metrics_csv = MetricsCsv(self.run_dir / METRICS_CSV)
+        self.disk = DiskWriter(self.journal, lambda text: self._log('error', text))
+        self.worker = LearnerWorker(config, self.learner, self.buffer, self.history, self.slot,
+                                    self.journal, self.disk, self.run_dir, self._log)
+        # Every key exists from the start, so readers never see the dict change size.
+        self.counters = collections.Counter(dict.fromkeys((
+            'act/count', 'drop/observation', 'drop/saliency', 'utterance/count',
+            'utterance/empty', 'feedback/logged', 'disk/feedback_log_errors'), 0))
+        self._feedback_lock = threading.Lock()  # seq order == log order == inbox order
+        self._seq = 0
+        self._now: Optional[int] = None
+        self._stamped_at = -math.inf
+        self._act_seconds = collections.deque(maxlen=1000)
+        self._last_rate = (time.monotonic(), 0)
+        self._started = False
+
+    def _check_run_dir(self) -> None:
+        self.run_dir.mkdir(parents=True, exist_ok=True)
+        used = [name for name in (FEEDBACK_LOG, CHECKPOINT_DIR)
+                if (self.run_dir / name).exists()]
+        if used and not self.config.resume:
+            raise FileExistsError(
+                f'run_dir {self.run_dir} already holds a run ({", ".join(used)}): pass '
+                'resume:=true to continue it, or choose a new run_dir')
+
+    # Life cycle.
+    def start(self) -> int:
+        """Resume if asked, then start the threads; return the number of feedback replayed."""
+        replayed = 0
+        if self.config.resume:
+            replayed = self._resume()
+        self.disk.start()
+        self.worker.start()
+        self._started = True
+        return replayed
+
+    def close(self) -> None:
+        """Finish pending work, write a last checkpoint, close the files."""
+        if self._started:
+            self.disk.flush()   # every feedback received is logged and with the learner,
+            self.worker.stop()  # which uses it all and queues a last checkpoint,
+            self.disk.stop()    # which is written before the files close
+        self.journal.close()
+        self.feedback_log.close()
+
+    def _resume(self) -> int:
+        try:
+            checkpoint = load_checkpoint(self.run_dir)
+        except Exception as error:  # torch.load raises many kinds
+            raise RuntimeError(
+                f'the checkpoint in {self.run_dir / CHECKPOINT_DIR} cannot be read ({error}); '
+                'move it away to resume from the feedback log alone') from error
+        entries, unreadable = FeedbackLog.read(self.run_dir / FEEDBACK_LOG)
+        if unreadable:
+            self._log('warn', f'{unreadable} unreadable line(s) in the feedback log skipped')
+        events = [event_from_entry(e) for e in entries if e.get('kind') == 'feedback']
+        self._seq = max((e.seq for e in events), default=0)
+        self.counters['feedback/logged'] = len(events)
+        segments = {}
+        records = StepJournal.read(self.run_dir / STEPS_DIR, segments)
+        replayed = self.worker.restore(checkpoint, events, records)
+        self.journal.adopt(segments)
+        stamps = [r.stamp for r in self.history.records()]
+        self._now = max(stamps) if stamps else None
+        self._log('info', f'resumed {self.run_dir}: checkpoint '
+                  f'{"at feedback #%d" % checkpoint["applied_seq"] if checkpoint else "none"}, '
+                  f'{replayed} logged feedback replayed, buffer {len(self.buffer)}, '
+                  f'model version {self.learner.updates}')
+        return replayed
+
+    # Acting path.
+    def on_observation(self, stamp: int, rgb: np.ndarray) -> Optional[int]:
+        """Store observation ``stamp``; return the greedy action if the agent acts on it."""
+        started = time.perf_counter()
+        image = self._preprocess('observation', rgb)
+        self._now = stamp if self._now is None else max(self._now, stamp)
+        record = self.history.put_image('observation', stamp, image)
+        self.journal.append(KIND_OBSERVATION, stamp, image=image)
+        if self.config.input_image == 'saliency':
+            self.worker.wake()
+            if record.saliency is None:
+                return None
+        return self._act(record, started)
+
+    def on_saliency(self, stamp: int, rgb: np.ndarray) -> Optional[int]:
+        """Store saliency image ``stamp``; return the action if the agent acts on saliency."""
+        started = time.perf_counter()
+        image = self._preprocess('saliency', rgb)
+        record = self.history.put_image('saliency', stamp, image)
+        self.journal.append(KIND_SALIENCY, stamp, image=image)
+        self.worker.wake()
+        if self.config.input_image != 'saliency':
+            return None
+        return self._act(record, started)
+
+    def _preprocess(self, kind: str, rgb: np.ndarray) -> torch.Tensor:
+        try:
+            return torch.from_numpy(preprocess(rgb))
+        except ValueError as error:
+            self.counters[f'drop/{kind}'] += 1
+            raise BadInput(f'{kind} dropped: {error}') from error
+
+    def _act(self, record, started: float) -> int:
+        if record.action is not None:
+            return record.action  # the env re-sent this step: answer it the same way
+        self.actor.refresh(self.slot)
+        action = self.actor.greedy(record.image(self.config.input_image))
+        self.history.set_action(record.stamp, action)
+        self.journal.append(KIND_ACTION, record.stamp, action)
+        self._act_seconds.append(time.perf_counter() - started)
+        self.counters['act/count'] += 1
+        return action
+
+    # Feedback path.
+    def on_feedback(self, h: float, source: str, stamp: Optional[int] = None,
+                    extra: Optional[dict] = None) -> FeedbackEvent:
+        """
+        Queue a feedback: the disk thread logs it, then hands it to the learner.
+
+        ``source`` is 'stamped' (``stamp`` = the step judged) or 'plain' (stamped on arrival
+        with the newest observation stamp, and ignored as a copy while a stamped stream is
+        active). Bad values are logged and counted, never raised. Returns at once.
+        """
+        arrived = time.monotonic()
+        h = float(h)
+        status = 'ok'
+        if not math.isfinite(h) or abs(h) > self.config.feedback_limit:
+            status = 'invalid'
+        elif source == 'stamped':
+            self._stamped_at = arrived
+        elif arrived - self._stamped_at < self.config.stamped_active_s:
+            status = 'duplicate'
+        if source == 'plain':
+            stamp = self._now
+        if status == 'ok' and stamp is None:
+            status = 'no_observation'
+        with self._feedback_lock:
+            self._seq += 1
+            event = FeedbackEvent(self._seq, h, stamp, self._now, status, self.config.credit,
+                                  arrived)
+            entry = {'kind': 'feedback', 'seq': event.seq, 'wall_time': time.time(),
+                     'source': source, 'h': json_number(h), 'stamp_ns': stamp,
+                     'now_ns': event.now, 'status': status, 'credit': event.credit}
+            entry.update(extra or {})
+            # One FIFO queue: feedback reaches the log and then the learner in arrival order.
+            self.disk.submit(lambda: self._log_then_learn(entry, event))
+        if status == 'invalid':
+            self._log('warn', f'feedback #{event.seq} h={h} is not a finite number within '
+                      f'+-{self.config.feedback_limit}: logged, not learned from')
+        elif status == 'no_observation':
+            self._log('warn', f'feedback #{event.seq} came before any observation: logged, '
+                      'not learned from')
+        return event
+
+    def _log_then_learn(self, entry: dict, event: FeedbackEvent) -> None:
+        """On the disk thread: the feedback is on disk (flushed) before the learner sees it."""
+        try:
+            self.journal.drain()  # the steps it refers to reach the disk before it does
+            self.feedback_log.append(entry)
+            self.counters['feedback/logged'] += 1
+        except (OSError, ValueError) as error:  # a full disk: say so loudly, still learn
+            self.counters['disk/feedback_log_errors'] += 1
+            self._log('error', f'feedback #{event.seq} could not be written to '
+                      f'{self.feedback_log.path}: {error}')
+        self.worker.submit(event)
+
+    def on_utterance(self, text: str) -> None:
+        """Record an utterance in the feedback log (the saliency node turns it into images)."""
+        stripped = text.strip()
+        self.counters['utterance/count'] += 1
+        if not stripped:
+            self.counters['utterance/empty'] += 1
+        entry = {'kind': 'utterance', 'wall_time': time.time(), 'now_ns': self._now,
+                 'text': text[:MAX_UTTERANCE_CHARS],
+                 'truncated': len(text) > MAX_UTTERANCE_CHARS}
+        self.disk.submit(lambda: self.feedback_log.append(entry))
+
+    def set_alpha(self, alpha: float) -> None:
+        if not (math.isfinite(alpha) and alpha >= 0.0):
+            raise ValueError(f'alpha must be a finite number >= 0, got {alpha}')
+        self.learner.alpha = float(alpha)
+        self.config.alpha = float(alpha)
+
+    # Metrics.
+    def metrics(self) -> dict:
+        """Namespaced key -> number, for the metrics topic and metrics.csv."""
+        values = self.worker.stats()
+        values.update(self.counters)
+        values['feedback/received'] = self._seq
+        values['act/version'] = self.actor.version
+        values['train/alpha'] = self.learner.alpha
+        values['disk/errors'] = self.disk.errors
+        now, updates = time.monotonic(), values['train/updates']
+        last_time, last_updates = self._last_rate
+        values['train/updates_per_s'] = (updates - last_updates) / max(now - last_time, 1e-9)
+        self._last_rate = (now, updates)
+        seconds = sorted(self._act_seconds)
+        if seconds:
+            values['act/latency_p50_ms'] = 1e3 * seconds[len(seconds) // 2]
+            values['act/latency_p99_ms'] = 1e3 * seconds[int(0.99 * (len(seconds) - 1))]
+        return values
+
+    def write_metrics_row(self, values: dict) -> None:
+        """Queue a metrics.csv row (written on the disk thread)."""
+        row = dict(values, wall_time=round(time.time(), 3))
+        self.disk.submit(lambda: self.metrics_csv.write(row))
+
+
+def event_from_entry(entry: dict) -> FeedbackEvent:
+    """Rebuild a FeedbackEvent from its feedback_log.jsonl line (for replay on resume)."""
+    h = entry.get('h')
+    return FeedbackEvent(
+        seq=int(entry['seq']), h=float(h) if h is not None else math.nan,
+        stamp=entry.get('stamp_ns'), now=entry.get('now_ns'), status=entry.get('status', 'ok'),
+        credit=entry.get('credit', 'step'), arrived=0.0)

@@ -1,0 +1,185 @@
+"""The feedback replay buffer: bounded, lock-protected, sampled into a NamedTuple of tensors."""
+
+import threading
+from typing import Iterable, List, NamedTuple, Optional
+
+import numpy as np
+from tamer_node.model import INPUT_SHAPE
+import torch
+
+
+class Sample(NamedTuple):
+    """
+    One labelled (state, action) pair, as the learner makes it from a feedback.
+
+    Images are (105, 80) uint8 tensors.
+    """
+
+    state: torch.Tensor
+    companion: Optional[torch.Tensor]
+    """The step's other image for the L2 term (its saliency image), or None."""
+    action: int
+    h: float
+    weight: float
+    """Credit weight (1 for ``step`` credit, the window's probability mass otherwise)."""
+    stamp: int
+    """The step's stamp, ns."""
+    seq: int
+    """Sequence number of the feedback that made it (its line in feedback_log.jsonl)."""
+
+
+class Batch(NamedTuple):
+    """A minibatch: B samples as tensors."""
+
+    states: torch.Tensor
+    """(B, 105, 80) uint8."""
+    companions: torch.Tensor
+    """(B, 105, 80) uint8; zeros where ``has_companion`` is false."""
+    has_companion: torch.Tensor
+    """(B,) bool."""
+    actions: torch.Tensor
+    """(B,) int64."""
+    h: torch.Tensor
+    """(B,) float32 feedback values."""
+    weights: torch.Tensor
+    """(B,) float32 credit weights."""
+
+
+def collate(samples: List[Sample]) -> Batch:
+    """Stack samples into a Batch."""
+    if not samples:
+        raise ValueError('cannot collate an empty list of samples')
+    blank = torch.zeros(INPUT_SHAPE, dtype=torch.uint8)
+    return Batch(
+        states=torch.stack([s.state for s in samples]),
+        companions=torch.stack([blank if s.companion is None else s.companion
+                                for s in samples]),
+        has_companion=torch.tensor([s.companion is not None for s in samples]),
+        actions=torch.tensor([s.action for s in samples], dtype=torch.int64),
+        h=torch.tensor([s.h for s in samples], dtype=torch.float32),
+        weights=torch.tensor([s.weight for s in samples], dtype=torch.float32),
+    )
+
+
+# Per-sample columns of the ring (besides the two images).
+_COLUMNS = {'has_companion': np.bool_, 'actions': np.int64, 'h': np.float32,
+            'weights': np.float32, 'stamps': np.int64, 'seqs': np.int64}
+
+
+class FeedbackBuffer:
+    """
+    The newest ``capacity`` samples, in preallocated arrays (as SB3's buffers); thread-safe.
+
+    Each sample's images are copied in, so the memory is fixed (2 x 8.4 kB per sample, taken
+    as the ring fills) and a long run does not fragment the heap with small blocks.
+    """
+
+    def __init__(self, capacity: int):
+        if capacity < 1:
+            raise ValueError('capacity must be at least 1')
+        self.capacity = capacity
+        self.states = np.zeros((capacity,) + INPUT_SHAPE, np.uint8)  # pages taken when used
+        self.companions = np.zeros((capacity,) + INPUT_SHAPE, np.uint8)
+        self.columns = {name: np.zeros(capacity, dtype) for name, dtype in _COLUMNS.items()}
+        self._size = 0
+        self._next = 0  # ring position of the next write
+        self._lock = threading.Lock()
+        self.added = 0
+
+    def add(self, sample: Sample) -> None:
+        self.extend([sample])
+
+    def extend(self, samples: Iterable[Sample]) -> None:
+        with self._lock:
+            for sample in samples:
+                i = self._next
+                self.states[i] = sample.state.numpy()
+                has_companion = sample.companion is not None
+                if has_companion:
+                    self.companions[i] = sample.companion.numpy()
+                for name, value in (('has_companion', has_companion),
+                                    ('actions', sample.action), ('h', sample.h),
+                                    ('weights', sample.weight), ('stamps', sample.stamp),
+                                    ('seqs', sample.seq)):
+                    self.columns[name][i] = value
+                self._next = (i + 1) % self.capacity
+                self._size = min(self._size + 1, self.capacity)
+                self.added += 1
+
+    def sample(self, batch_size: int, rng: np.random.Generator) -> Batch:
+        """``min(batch_size, len)`` distinct samples, uniformly at random."""
+        with self._lock:
+            if not self._size:
+                raise ValueError('cannot sample from an empty buffer')
+            rows = rng.choice(self._size, min(batch_size, self._size), replace=False)
+            return self._batch(rows)
+
+    def _batch(self, rows: np.ndarray) -> Batch:
+        columns = {name: torch.from_numpy(values[rows]) for name, values in self.columns.items()}
+        return Batch(states=torch.from_numpy(self.states[rows]),
+                     companions=torch.from_numpy(self.companions[rows]),
+                     has_companion=columns['has_companion'], actions=columns['actions'],
+                     h=columns['h'], weights=columns['weights'])
+
+    def _order(self) -> np.ndarray:
+        """Return the row indices, oldest sample first."""
+        if self._size < self.capacity:
+            return np.arange(self._size)
+        return (np.arange(self.capacity) + self._next) % self.capacity
+
+    def samples(self) -> List[Sample]:
+        """Return copies of all samples, oldest first."""
+        with self._lock:
+            out = []
+            for i in self._order():
+                has = bool(self.columns['has_companion'][i])
+                out.append(Sample(
+                    torch.from_numpy(self.states[i].copy()),
+                    torch.from_numpy(self.companions[i].copy()) if has else None,
+                    int(self.columns['actions'][i]), float(self.columns['h'][i]),
+                    float(self.columns['weights'][i]), int(self.columns['stamps'][i]),
+                    int(self.columns['seqs'][i])))
+            return out
+
+    def __len__(self) -> int:
+        with self._lock:
+            return self._size
+
+    def state_dict(self, images: bool = True) -> dict:
+        """
+        Return a consistent copy, oldest first, for ``torch.load(weights_only=True)``.
+
+        ``images=False`` leaves the images out (the caller can find them again by stamp):
+        a few hundred kB instead of up to 170 MB.
+        """
+        with self._lock:
+            order = self._order()
+            state = {
+                'capacity': self.capacity,
+                'added': self.added,
+                'columns': {name: torch.from_numpy(values[order])
+                            for name, values in self.columns.items()},
+            }
+            if images:
+                has = self.columns['has_companion'][order]
+                state['states'] = torch.from_numpy(self.states[order])
+                state['companions'] = torch.from_numpy(self.companions[order[has]])
+            return state
+
+    def load_state_dict(self, state: dict) -> None:
+        """Load a ``state_dict(images=True)``; ``companions`` holds the rows that have one."""
+        states = state['states'].numpy()[-self.capacity:]
+        columns = {name: values.numpy()[-self.capacity:]
+                   for name, values in state['columns'].items()}
+        has = columns['has_companion']
+        companions = np.zeros_like(states)
+        companions[has] = state['companions'].numpy()[-int(has.sum()):] if has.any() else 0
+        with self._lock:
+            size = len(states)
+            self.states[:size] = states
+            self.companions[:size] = companions
+            for name in _COLUMNS:
+                self.columns[name][:size] = columns[name]
+            self._size = size
+            self._next = size % self.capacity
+            self.added = int(state['added'])

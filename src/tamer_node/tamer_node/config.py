@@ -1,0 +1,107 @@
+"""Every hyperparameter of the learner in one dataclass; each field is a ROS parameter too."""
+
+import ast
+import dataclasses
+from dataclasses import dataclass
+import inspect
+from typing import Dict
+
+CREDIT_MODES = ('step', 'window')
+INPUT_IMAGES = ('observation', 'saliency')
+
+
+@dataclass
+class TamerConfig:
+    """Deep TAMER with the saliency L2 term (thesis eq. 4.3/4.4); names equal ROS parameters."""
+
+    alpha: float = 1e-4
+    """Weight of the saliency L2 term in loss = MSE + alpha * L2; 0 is vanilla Deep TAMER."""
+    credit: str = 'step'
+    """'step': feedback stamped T labels (s_T, a_T); 'window': Deep TAMER credit window."""
+    window_min_s: float = 0.2
+    """Credit window: the shortest delay (simulation s) between an action and feedback on it."""
+    window_max_s: float = 4.0
+    """Credit window: the longest delay (simulation s) between an action and feedback on it."""
+    learning_rate: float = 1e-3
+    """Adam step size of the learner."""
+    batch_size: int = 32
+    """Samples per minibatch update from the replay buffer."""
+    buffer_capacity: int = 10000
+    """Labelled samples the feedback replay buffer keeps (oldest dropped first)."""
+    update_rate_hz: float = 20.0
+    """Minibatch updates per wall-clock second from the buffer (0 = only immediate updates)."""
+    immediate_update: bool = True
+    """Also take one update on the samples of each new feedback as soon as it is paired."""
+    saliency_timeout_s: float = 0.5
+    """Wall seconds a labelled sample waits for its step's saliency image before L2-less use."""
+    history_steps: int = 512
+    """Recent steps (image, action, time span) kept for attributing feedback to them."""
+    stamped_active_s: float = 3.0
+    """Wall seconds after a stamped feedback during which plain feedback counts as its copy."""
+    feedback_limit: float = 100.0
+    """Largest |h| accepted; larger (and NaN/inf) feedback is logged, counted and not learned."""
+    checkpoint_period_s: float = 60.0
+    """Wall seconds between atomic checkpoints in <run_dir>/checkpoints (0 = only at exit)."""
+    metrics_period_s: float = 1.0
+    """Wall seconds between metrics messages (and rows of metrics.csv)."""
+    fine_tune_encoder: bool = False
+    """Train the pretrained encoder too (Deep TAMER keeps it frozen)."""
+    input_image: str = 'observation'
+    """Image the agent acts and learns on: 'observation' or the step's 'saliency' image."""
+    head_hidden: int = 64
+    """Hidden units of H's fully connected head."""
+    seed: int = 0
+    """Seeds the head's initial weights and minibatch sampling."""
+    encoder_path: str = ''
+    """Pretrained encoder weights ('' = the ones shipped in tamer_node/weights/encoder.pt)."""
+    run_dir: str = ''
+    """Folder for metrics.csv, feedback_log.jsonl, checkpoints/ ('' = a new dated folder)."""
+    resume: bool = False
+    """Continue the run in run_dir from its last checkpoint and its feedback log."""
+
+    def validate(self) -> None:
+        """Raise ValueError naming the first field with an impossible value."""
+        if self.credit not in CREDIT_MODES:
+            raise ValueError(f'credit must be one of {CREDIT_MODES}, got {self.credit!r}')
+        if self.input_image not in INPUT_IMAGES:
+            raise ValueError(
+                f'input_image must be one of {INPUT_IMAGES}, got {self.input_image!r}')
+        if not 0.0 <= self.window_min_s < self.window_max_s:
+            raise ValueError('the credit window needs 0 <= window_min_s < window_max_s, got '
+                             f'{self.window_min_s}, {self.window_max_s}')
+        checks = {
+            'alpha': self.alpha >= 0.0,
+            'learning_rate': self.learning_rate > 0.0,
+            'batch_size': self.batch_size >= 1,
+            'buffer_capacity': self.buffer_capacity >= 1,
+            'update_rate_hz': self.update_rate_hz >= 0.0,
+            'saliency_timeout_s': self.saliency_timeout_s >= 0.0,
+            'history_steps': self.history_steps >= 2,
+            'stamped_active_s': self.stamped_active_s >= 0.0,
+            'feedback_limit': self.feedback_limit > 0.0,
+            'checkpoint_period_s': self.checkpoint_period_s >= 0.0,
+            'metrics_period_s': self.metrics_period_s > 0.0,
+            'head_hidden': self.head_hidden >= 1,
+        }
+        for name, ok in checks.items():
+            if not ok:
+                raise ValueError(f'{name} = {getattr(self, name)!r} is out of range')
+
+
+def field_docs(cls=TamerConfig) -> Dict[str, str]:
+    """Return {field name: the docstring written under it} of a dataclass."""
+    tree = ast.parse(inspect.getsource(cls))
+    body = tree.body[0].body
+    docs = {}
+    for node, following in zip(body, body[1:]):
+        if (isinstance(node, ast.AnnAssign) and isinstance(node.target, ast.Name)
+                and isinstance(following, ast.Expr)
+                and isinstance(following.value, ast.Constant)
+                and isinstance(following.value.value, str)):
+            docs[node.target.id] = following.value.value.strip()
+    return docs
+
+
+def field_names(cls=TamerConfig):
+    """Names of the dataclass fields, in declaration order."""
+    return [f.name for f in dataclasses.fields(cls)]

@@ -1,0 +1,117 @@
+"""
+Recent steps by stamp: the images of each step and the action chosen for it.
+
+Observation T, saliency T and the feedback on T arrive on different topics in any order; this
+is where they meet. Bounded (oldest step evicted first) and thread-safe: the acting path writes,
+the learner thread reads.
+"""
+
+import collections
+import dataclasses
+from dataclasses import dataclass
+import threading
+from typing import Dict, List, Optional
+
+from tamer_node.credit import Span, spans_from_stamps
+import torch
+
+IMAGE_KINDS = ('observation', 'saliency')
+
+
+@dataclass
+class StepRecord:
+    """What is known about one step."""
+
+    stamp: int
+    observation: Optional[torch.Tensor] = None
+    """Preprocessed (105, 80) uint8 observation."""
+    saliency: Optional[torch.Tensor] = None
+    """Preprocessed (105, 80) uint8 saliency image, if one came."""
+    action: Optional[int] = None
+    """The action the agent answered this step with."""
+
+    def image(self, kind: str) -> Optional[torch.Tensor]:
+        return getattr(self, kind)
+
+
+def other_kind(kind: str) -> str:
+    """'observation' <-> 'saliency'."""
+    return IMAGE_KINDS[1 - IMAGE_KINDS.index(kind)]
+
+
+class StepHistory:
+    """The newest ``capacity`` steps."""
+
+    def __init__(self, capacity: int):
+        if capacity < 1:
+            raise ValueError('capacity must be at least 1')
+        self.capacity = capacity
+        self._records: 'collections.OrderedDict[int, StepRecord]' = collections.OrderedDict()
+        self._newest: Dict[str, int] = {}
+        self._lock = threading.Lock()
+
+    def put_image(self, kind: str, stamp: int, image: torch.Tensor) -> StepRecord:
+        """Store an image of a step; return a copy of the step's record."""
+        if kind not in IMAGE_KINDS:
+            raise ValueError(f'unknown image kind {kind!r}')
+        with self._lock:
+            record = self._record(stamp)
+            setattr(record, kind, image)
+            self._newest[kind] = max(stamp, self._newest.get(kind, stamp))
+            return dataclasses.replace(record)
+
+    def set_action(self, stamp: int, action: int) -> None:
+        with self._lock:
+            self._record(stamp).action = int(action)
+
+    def get(self, stamp: int) -> Optional[StepRecord]:
+        """Return a copy of the record (images are shared, never modified), or None."""
+        with self._lock:
+            record = self._records.get(stamp)
+            return None if record is None else dataclasses.replace(record)
+
+    def newest(self, kind: str) -> Optional[int]:
+        """Return the newest stamp an image of ``kind`` came with, or None."""
+        with self._lock:
+            return self._newest.get(kind)
+
+    def settled(self, stamp: int, kind: str) -> bool:
+        """
+        Tell whether step ``stamp`` has its ``kind`` image or never will get it.
+
+        Each image stream comes from one publisher in stamp order, so once an image of a later
+        step has arrived, this step's will not come any more.
+        """
+        with self._lock:
+            record = self._records.get(stamp)
+            if record is not None and record.image(kind) is not None:
+                return True
+            return self._newest.get(kind, stamp) > stamp
+
+    def acted_spans(self, now: int) -> List[Span]:
+        """Return the time spans of the steps that were answered with an action."""
+        with self._lock:
+            stamps = [s for s, r in self._records.items() if r.action is not None]
+        return spans_from_stamps(stamps, now)
+
+    def oldest(self) -> Optional[int]:
+        """Return the oldest stamp held, or None."""
+        with self._lock:
+            return min(self._records, default=None)
+
+    def records(self) -> List[StepRecord]:
+        """Return copies of all records, oldest first."""
+        with self._lock:
+            return [dataclasses.replace(r) for r in self._records.values()]
+
+    def __len__(self) -> int:
+        with self._lock:
+            return len(self._records)
+
+    def _record(self, stamp: int) -> StepRecord:
+        record = self._records.get(stamp)
+        if record is None:
+            record = self._records[stamp] = StepRecord(stamp)
+            while len(self._records) > self.capacity:
+                self._records.popitem(last=False)
+        return record

@@ -1,0 +1,62 @@
+"""The learner: owns the optimizer and takes gradient steps on H (thesis eq. 4.3 and 4.4)."""
+
+from typing import Dict
+
+from tamer_node.buffer import Batch
+from tamer_node.model import HModel, to_input
+import torch
+
+
+class Learner:
+    """Trains an ``HModel``; one thread at a time calls ``train_step`` (see worker.py)."""
+
+    def __init__(self, model: HModel, learning_rate: float = 1e-3, alpha: float = 1e-4):
+        self.model = model
+        self.optimizer = torch.optim.Adam(model.trainable_parameters(), lr=learning_rate)
+        self.alpha = float(alpha)
+        """Weight of the saliency L2 term; may be changed between steps (a ROS parameter)."""
+        self.updates = 0
+
+    def loss(self, batch: Batch):
+        """Return (loss, mse, l2) for a batch, as tensors with their graph."""
+        predictions = self.model(to_input(batch.states))             # H(s, .), (B, 18)
+        judged = predictions.gather(1, batch.actions.unsqueeze(1)).squeeze(1)
+        mse = (batch.weights * (judged - batch.h) ** 2).sum() / batch.weights.sum()
+        rows = batch.has_companion
+        if self.alpha == 0.0 or not bool(rows.any()):
+            # Vanilla Deep TAMER: no saliency image is even run through the network.
+            return mse, mse, torch.zeros(())
+        # Eq. 4.3 over ALL 18 outputs, not only the judged action's: the saliency image tells
+        # which pixels matter in this state, whatever the action, so the whole vector H(s, .)
+        # should stay the same when the rest is blurred away. Mean over the rows that have one.
+        on_saliency = self.model(to_input(batch.companions[rows]))   # H(s', .), (R, 18)
+        l2 = ((predictions[rows] - on_saliency) ** 2).sum(dim=1).mean()
+        return mse + self.alpha * l2, mse, l2
+
+    def train_step(self, batch: Batch) -> Dict[str, float]:
+        """Take one Adam step on the batch; return the loss terms as floats."""
+        loss, mse, l2 = self.loss(batch)
+        terms = {'loss': loss.item(), 'mse': mse.item(), 'l2': l2.item(),
+                 'l2_rows': int(batch.has_companion.sum()) if self.alpha > 0.0 else 0,
+                 'skipped': 0}
+        if not torch.isfinite(loss):
+            terms['skipped'] = 1  # a step on a NaN would spoil every weight for good
+            return terms
+        self.optimizer.zero_grad(set_to_none=True)
+        loss.backward()
+        self.optimizer.step()
+        self.updates += 1
+        return terms
+
+    def snapshot(self) -> Dict[str, torch.Tensor]:
+        """Copy the weights for the acting model (never shares memory with training)."""
+        return {name: tensor.detach().clone() for name, tensor in self.model.state_dict().items()}
+
+    def state_dict(self) -> dict:
+        return {'model': self.model.state_dict(), 'optimizer': self.optimizer.state_dict(),
+                'updates': self.updates}
+
+    def load_state_dict(self, state: dict) -> None:
+        self.model.load_state_dict(state['model'])
+        self.optimizer.load_state_dict(state['optimizer'])
+        self.updates = int(state['updates'])

@@ -1,0 +1,147 @@
+"""
+Networks: the image preprocessing, the convolutional autoencoder and H(s, a).
+
+Preprocessing (shared by frames and saliency images): RGB 210x160 -> luminance -> 105x80 by
+exact 2x2 area averaging, uint8. Halving keeps most of the saliency blur visible to the network
+(on a Room 1 frame blurred as the saliency node does, the mean absolute pixel difference is 8.0
+grey levels at 105x80 against 11.3 at full size and 6.0 at the usual 84x84 squeeze), keeps the
+agent's few pixels, and makes a frame 8.4 kB, so a buffer of 10,000 steps with saliency images
+fits in about 170 MB. Colour is dropped: the study's objects differ in brightness as well.
+
+The encoder is fully convolutional: its 8x14x10 feature map keeps where things are, which is
+what H needs (the thesis found the agent's position is nearly all that matters).
+"""
+
+from typing import Optional
+
+from attention_common.joy_actions import NUM_ACTIONS
+import cv2
+import numpy as np
+import torch
+from torch import nn
+import torch.nn.functional as F
+
+FRAME_SHAPE = (210, 160, 3)
+"""What the env publishes: RGB rows x columns x channels."""
+INPUT_SHAPE = (105, 80)
+"""What the networks see: luminance, half the frame's size."""
+FEATURE_SHAPE = (8, 14, 10)
+"""Encoder output: channels x rows x columns."""
+FEATURE_SIZE = int(np.prod(FEATURE_SHAPE))
+ENCODER_FORMAT = 'tamer_node.encoder/1'
+
+
+def preprocess(rgb: np.ndarray) -> np.ndarray:
+    """(210, 160, 3) uint8 RGB frame or saliency image -> (105, 80) uint8 luminance."""
+    if rgb.shape != FRAME_SHAPE or rgb.dtype != np.uint8:
+        raise ValueError(f'expected a {FRAME_SHAPE} uint8 RGB image, got {rgb.shape} '
+                         f'{rgb.dtype}')
+    gray = cv2.cvtColor(rgb, cv2.COLOR_RGB2GRAY)
+    return cv2.resize(gray, (INPUT_SHAPE[1], INPUT_SHAPE[0]), interpolation=cv2.INTER_AREA)
+
+
+def to_input(images) -> torch.Tensor:
+    """(B, 105, 80) uint8 array or tensor -> (B, 1, 105, 80) float32 in [0, 1]."""
+    images = torch.as_tensor(images)
+    if images.dim() == 2:
+        images = images.unsqueeze(0)
+    return images.unsqueeze(1).to(torch.float32) / 255.0
+
+
+class Encoder(nn.Module):
+    """(B, 1, 105, 80) -> (B, 8, 14, 10): three stride-2 convolutions and a 1-stride one."""
+
+    def __init__(self):
+        super().__init__()
+        self.layers = nn.Sequential(
+            nn.Conv2d(1, 8, 5, stride=2, padding=2), nn.ReLU(),    # 53x40
+            nn.Conv2d(8, 16, 5, stride=2, padding=2), nn.ReLU(),   # 27x20
+            nn.Conv2d(16, 16, 3, stride=2, padding=1), nn.ReLU(),  # 14x10
+            nn.Conv2d(16, FEATURE_SHAPE[0], 3, padding=1),         # 8x14x10, linear code
+        )
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return self.layers(x)
+
+
+class Decoder(nn.Module):
+    """(B, 8, 14, 10) -> (B, 1, 105, 80) residual: nearest upsampling and convolutions."""
+
+    def __init__(self):
+        super().__init__()
+        self.c1 = nn.Conv2d(FEATURE_SHAPE[0], 16, 3, padding=1)
+        self.c2 = nn.Conv2d(16, 16, 3, padding=1)
+        self.c3 = nn.Conv2d(16, 8, 3, padding=1)
+        self.c4 = nn.Conv2d(8, 1, 3, padding=1)
+        with torch.no_grad():  # start close to "no change from the mean image"
+            self.c4.weight.mul_(0.1)
+            self.c4.bias.zero_()
+
+    def forward(self, z: torch.Tensor) -> torch.Tensor:
+        x = F.relu(self.c1(z))
+        x = F.relu(self.c2(F.interpolate(x, size=(27, 20))))
+        x = F.relu(self.c3(F.interpolate(x, size=(53, 40))))
+        return self.c4(F.interpolate(x, size=INPUT_SHAPE))
+
+
+class ConvAutoencoder(nn.Module):
+    """
+    Encoder + decoder, pretrained on Room 1 frames to reconstruct them (tamer_pretrain).
+
+    The reconstruction is the training set's mean image plus the decoded residual. Room 1 hardly
+    changes, so the code has to carry what does (the agent, the skull, the key, saliency blur)
+    instead of spending itself on the static walls that the mean image already holds.
+    """
+
+    def __init__(self):
+        super().__init__()
+        self.encoder = Encoder()
+        self.decoder = Decoder()
+        self.register_buffer('mean_image', torch.zeros((1, 1) + INPUT_SHAPE))
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return self.mean_image + self.decoder(self.encoder(x))
+
+
+class HModel(nn.Module):
+    """H(s, .): the encoder's features into a small head with one output per ALE action."""
+
+    def __init__(self, hidden: int = 64, freeze_encoder: bool = True,
+                 encoder: Optional[Encoder] = None):
+        super().__init__()
+        self.encoder = encoder if encoder is not None else Encoder()
+        self.head = nn.Sequential(
+            nn.Flatten(), nn.Linear(FEATURE_SIZE, hidden), nn.ReLU(),
+            nn.Linear(hidden, NUM_ACTIONS))
+        self.freeze_encoder = freeze_encoder
+        self.encoder.requires_grad_(not freeze_encoder)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        """(B, 1, 105, 80) float -> (B, 18) predicted feedback for every action."""
+        if self.freeze_encoder:
+            with torch.no_grad():
+                features = self.encoder(x)
+        else:
+            features = self.encoder(x)
+        return self.head(features)
+
+    def trainable_parameters(self):
+        return [p for p in self.parameters() if p.requires_grad]
+
+
+def save_encoder(encoder: Encoder, path, info: Optional[dict] = None) -> None:
+    """Write the encoder's weights with a format tag and how they were made."""
+    torch.save({'format': ENCODER_FORMAT, 'input_shape': list(INPUT_SHAPE),
+                'info': dict(info or {}), 'state_dict': encoder.state_dict()}, path)
+
+
+def load_encoder(path) -> Encoder:
+    """Read weights written by ``save_encoder``; raise ValueError if they do not fit."""
+    blob = torch.load(path, map_location='cpu', weights_only=True)
+    if not isinstance(blob, dict) or blob.get('format') != ENCODER_FORMAT:
+        raise ValueError(f'{path} is not a {ENCODER_FORMAT} file')
+    if list(blob.get('input_shape', [])) != list(INPUT_SHAPE):
+        raise ValueError(f'{path} was trained on {blob.get("input_shape")}, not {INPUT_SHAPE}')
+    encoder = Encoder()
+    encoder.load_state_dict(blob['state_dict'])
+    return encoder

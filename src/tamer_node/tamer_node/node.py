@@ -1,0 +1,186 @@
+"""
+tamer_node: Deep TAMER with the saliency L2 term over ROS topics (a thin shell on TamerAgent).
+
+Subscribes ``observation``, ``saliency``, ``feedback``, ``feedback_stamped``, ``utterance``;
+publishes ``action`` (sensor_msgs/Joy with the answered image's header) and ``metrics``.
+Every TamerConfig field is a parameter of the same name; ``alpha`` may be changed at run time.
+
+Executor: a SingleThreadedExecutor on purpose. Every callback only converts and hands over
+(acting itself is a ~1 ms forward pass); training runs on the learner thread and all disk I/O,
+the feedback log included, on the disk thread (worker.py states the contract). rclpy's
+MultiThreadedExecutor measured 2-3x fewer lockstep steps per second here on 2 shared cores,
+for nothing a callback would gain from running in parallel.
+"""
+
+import dataclasses
+import math
+
+from attention_common import qos, topics
+from attention_common.image_codec import image_to_numpy, ImageFormatError
+from attention_common.joy_actions import action_to_joy
+from attention_common.node_main import run_node, StartupError
+from attention_common.stamps import stamp_to_ns
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from geometry_msgs.msg import Vector3Stamped
+from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
+from rclpy.node import Node
+from sensor_msgs.msg import Image, Joy
+from std_msgs.msg import Float32, String
+from tamer_node.agent import BadInput, default_run_dir, share_the_cpu, TamerAgent
+from tamer_node.config import field_docs, TamerConfig
+from tamer_node.persistence import json_number
+
+RUNTIME_PARAMETERS = ('alpha',)
+LOG_THROTTLE_S = 5.0
+
+
+class TamerNode(Node):
+    """Acts greedily on each observation and learns from feedback on a thread of its own."""
+
+    def __init__(self, **kwargs):
+        super().__init__('tamer_node', **kwargs)
+        share_the_cpu()
+        self.config = self._declare_config()
+        if self.config.resume and not self.config.run_dir:
+            raise StartupError('tamer_node: resume:=true needs the run_dir of the run to resume')
+        if not self.config.run_dir:
+            self.config.run_dir = str(default_run_dir())
+        try:
+            self.agent = TamerAgent(self.config, self.config.run_dir, log=self._log)
+            replayed = self.agent.start()
+        except Exception as error:  # whatever stops the start, say it in one line
+            raise StartupError(f'tamer_node: {error}') from error
+        self.add_on_set_parameters_callback(self._on_set_parameters)
+
+        self.action_pub = self.create_publisher(Joy, topics.ACTION, qos.ACTIONS)
+        self.metrics_pub = self.create_publisher(DiagnosticArray, topics.METRICS, qos.METRICS)
+        self.create_subscription(Image, topics.OBSERVATION, self._on_observation, qos.FRAMES)
+        self.create_subscription(Image, topics.SALIENCY, self._on_saliency, qos.FRAMES)
+        self.create_subscription(Vector3Stamped, topics.FEEDBACK_STAMPED,
+                                 self._on_feedback_stamped, qos.HUMAN)
+        self.create_subscription(Float32, topics.FEEDBACK, self._on_feedback, qos.HUMAN)
+        self.create_subscription(String, topics.UTTERANCE, self._on_utterance, qos.HUMAN)
+        self.create_timer(self.config.metrics_period_s, self._publish_metrics)
+        self.get_logger().info(
+            f'ready: run_dir {self.config.run_dir}, alpha {self.config.alpha}, credit '
+            f'{self.config.credit}, input_image {self.config.input_image}, model version '
+            f'{self.agent.learner.updates}, buffer {len(self.agent.buffer)}'
+            + (f', {replayed} logged feedback replayed' if self.config.resume else ''))
+
+    # Parameters.
+    def _declare_config(self) -> TamerConfig:
+        docs = field_docs()
+        values = {}
+        for field in dataclasses.fields(TamerConfig):
+            default = field.default
+            # Floats accept integers too (alpha:=0 must work from the command line).
+            descriptor = ParameterDescriptor(description=docs[field.name],
+                                             dynamic_typing=isinstance(default, float))
+            value = self.declare_parameter(field.name, default, descriptor).value
+            if isinstance(default, float):
+                try:
+                    value = float(value)
+                except (TypeError, ValueError):
+                    raise StartupError(f'tamer_node: parameter {field.name} must be a number, '
+                                       f'got {value!r}')
+            values[field.name] = value
+        config = TamerConfig(**values)
+        try:
+            config.validate()
+        except ValueError as error:
+            raise StartupError(f'tamer_node: {error}') from error
+        return config
+
+    def _on_set_parameters(self, parameters) -> SetParametersResult:
+        for parameter in parameters:
+            if parameter.name not in RUNTIME_PARAMETERS:
+                return SetParametersResult(
+                    successful=False,
+                    reason=f'{parameter.name} is read at start-up only; restart the node')
+            try:
+                alpha = float(parameter.value)
+                if not (math.isfinite(alpha) and alpha >= 0.0):
+                    raise ValueError
+            except (TypeError, ValueError):
+                return SetParametersResult(successful=False,
+                                           reason='alpha must be a finite number >= 0')
+        for parameter in parameters:
+            self.agent.set_alpha(float(parameter.value))
+            self.get_logger().info(f'alpha is now {self.agent.learner.alpha}')
+        return SetParametersResult(successful=True)
+
+    # Acting path.
+    def _on_observation(self, msg: Image) -> None:
+        self._handle_image(msg, 'observation', self.agent.on_observation)
+
+    def _on_saliency(self, msg: Image) -> None:
+        self._handle_image(msg, 'saliency', self.agent.on_saliency)
+
+    def _handle_image(self, msg: Image, kind: str, handler) -> None:
+        try:
+            rgb = image_to_numpy(msg)
+            action = handler(stamp_to_ns(msg.header.stamp), rgb)
+        except (ImageFormatError, BadInput) as error:
+            if isinstance(error, ImageFormatError):
+                self.agent.counters[f'drop/{kind}'] += 1
+            self.get_logger().warning(f'{kind} dropped ({error})',
+                                      throttle_duration_sec=LOG_THROTTLE_S)
+            return
+        if action is not None:
+            joy = Joy()
+            joy.header = msg.header
+            axes, buttons = action_to_joy(action)
+            joy.axes = [float(a) for a in axes]
+            joy.buttons = [int(b) for b in buttons]
+            self.action_pub.publish(joy)
+
+    # Feedback path.
+    def _on_feedback_stamped(self, msg: Vector3Stamped) -> None:
+        extra = {'critical_position': json_number(msg.vector.y),
+                 'distance': json_number(msg.vector.z)}
+        self.agent.on_feedback(msg.vector.x, 'stamped', stamp_to_ns(msg.header.stamp), extra)
+
+    def _on_feedback(self, msg: Float32) -> None:
+        self.agent.on_feedback(msg.data, 'plain')
+
+    def _on_utterance(self, msg: String) -> None:
+        text = msg.data
+        shown = text if len(text) <= 200 else text[:200] + f'... ({len(text)} characters)'
+        self.get_logger().info(f'utterance: {shown!r}')
+        self.agent.on_utterance(text)
+
+    def _log(self, level: str, text: str) -> None:
+        logger = self.get_logger()
+        {'info': logger.info, 'warn': logger.warning, 'error': logger.error}[level](text)
+
+    # Metrics.
+    def _publish_metrics(self) -> None:
+        values = self.agent.metrics()
+        status = DiagnosticStatus(level=DiagnosticStatus.OK, name='tamer_node',
+                                  hardware_id='tamer_node', message='learner metrics')
+        status.values = [KeyValue(key=key, value=_format(value))
+                         for key, value in sorted(values.items())]
+        array = DiagnosticArray(status=[status])
+        array.header.stamp = self.get_clock().now().to_msg()
+        self.metrics_pub.publish(array)
+        self.agent.write_metrics_row(values)
+
+    def destroy_node(self) -> None:
+        agent = getattr(self, 'agent', None)
+        if agent is not None:
+            agent.close()  # finishes pending feedback, writes the last checkpoint
+        super().destroy_node()
+
+
+def _format(value) -> str:
+    if isinstance(value, float):
+        return f'{value:.6g}'
+    return str(value)
+
+
+def main(args=None) -> int:
+    return run_node(TamerNode, args)  # SingleThreadedExecutor: see the module docstring
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())

@@ -1,0 +1,300 @@
+"""
+Everything a run writes to <run_dir>, so that a crash loses nothing a person said.
+
+- ``feedback_log.jsonl``: one JSON line per feedback (and utterance) received, written and
+  flushed before the feedback is used (survives ``kill -9``; a power cut may lose the page
+  cache's last lines, as with any file not fsync'ed).
+- ``steps/segment-NNNNNN.bin``: a journal of the steps (preprocessed images, chosen actions),
+  written a few records at a time. It holds the buffer's images (so a checkpoint need not copy
+  up to 170 MB of them every time, which would stall the process) and the steps that feedback
+  logged after the last checkpoint refers to (replayed on resume). A new segment starts at every
+  checkpoint; a segment is deleted once every step in it is older than anything the newest
+  checkpoint still needs.
+- ``checkpoints/checkpoint.pt``: model, optimizer, buffer (its columns; the images are found in
+  the journal by stamp), counters; written to a temporary file and moved into place with
+  ``os.replace`` (a reader sees the old or the new one, never half).
+- ``metrics.csv``: one row per metrics period.
+"""
+
+import collections
+import csv
+import json
+import math
+import os
+from pathlib import Path
+import queue
+import struct
+import threading
+from typing import Callable, Dict, Iterator, List, Optional, Tuple
+import zlib
+
+import numpy as np
+import torch
+
+FEEDBACK_LOG = 'feedback_log.jsonl'
+METRICS_CSV = 'metrics.csv'
+CHECKPOINT_DIR = 'checkpoints'
+CHECKPOINT_FILE = 'checkpoint.pt'
+STEPS_DIR = 'steps'
+
+KIND_OBSERVATION, KIND_SALIENCY, KIND_ACTION = 1, 2, 3
+KIND_NAMES = {KIND_OBSERVATION: 'observation', KIND_SALIENCY: 'saliency'}
+_MAGIC = b'TMJ2'
+# magic, kind, stamp ns, action, rows, columns, payload bytes (the pixels, zlib level 1: Atari
+# frames shrink ~13x, blurred saliency images ~6x, for ~40 us each on the disk thread).
+_HEADER = struct.Struct('<4sBqhHHI')
+
+
+def json_number(value: float):
+    """Return a float for JSON; non-finite ones as strings ('nan', 'inf'): JSON has none."""
+    return value if math.isfinite(value) else repr(float(value))
+
+
+class FeedbackLog:
+    """Append-only JSON lines, each flushed as it is written."""
+
+    def __init__(self, path: Path):
+        self.path = Path(path)
+        self._file = open(self.path, 'a', encoding='utf-8')
+        self._lock = threading.Lock()
+
+    def append(self, entry: dict) -> None:
+        line = json.dumps(entry, allow_nan=False, ensure_ascii=True)
+        with self._lock:
+            self._file.write(line + '\n')
+            self._file.flush()
+
+    def close(self) -> None:
+        with self._lock:
+            self._file.close()
+
+    @staticmethod
+    def read(path: Path) -> Tuple[List[dict], int]:
+        """Return (entries, number of unreadable lines); a missing file has none."""
+        entries, bad = [], 0
+        if not Path(path).exists():
+            return entries, bad
+        with open(path, encoding='utf-8', errors='replace') as file:
+            for line in file:
+                try:
+                    entry = json.loads(line)
+                except ValueError:  # a line cut short by a crash
+                    bad += 1
+                    continue
+                if isinstance(entry, dict):
+                    entries.append(entry)
+                else:
+                    bad += 1
+        return entries, bad
+
+
+class StepJournal:
+    """Step records queued by the acting path (never blocks) and written by whoever drains."""
+
+    def __init__(self, directory: Path, segment: int = 0):
+        self.directory = Path(directory)
+        self.directory.mkdir(parents=True, exist_ok=True)
+        self._queue = collections.deque()  # append/popleft are atomic: no lock on the hot path
+        self._lock = threading.Lock()      # serializes drains (file writes)
+        self.segment = segment
+        self._last_segment = segment
+        self._newest: Dict[int, int] = {}  # segment -> newest stamp in it
+        self._file = open(self.segment_path(segment), 'ab')
+
+    def segment_path(self, segment: int) -> Path:
+        return self.directory / f'segment-{segment:06d}.bin'
+
+    def append(self, kind: int, stamp: int, action: int = -1,
+               image: Optional[torch.Tensor] = None) -> None:
+        self._queue.append(('record', kind, stamp, action, image))
+
+    def rotate(self) -> int:
+        """Queue the switch to a new segment file (after what is queued now); return its index."""
+        self._last_segment += 1
+        self._queue.append(('rotate', self._last_segment))
+        return self._last_segment
+
+    def drain(self) -> int:
+        """Write everything queued so far and flush; return the number of records written."""
+        written = 0
+        with self._lock:
+            while self._queue:
+                item = self._queue.popleft()
+                if item[0] == 'rotate':
+                    self._file.close()
+                    if self.segment not in self._newest:  # nothing was written to it
+                        self.segment_path(self.segment).unlink(missing_ok=True)
+                    self.segment = item[1]
+                    self._file = open(self.segment_path(self.segment), 'ab')
+                    continue
+                _, kind, stamp, action, image = item
+                self._newest[self.segment] = max(stamp, self._newest.get(self.segment, stamp))
+                payload = b'' if image is None else zlib.compress(image.numpy().tobytes(), 1)
+                rows, cols = (0, 0) if image is None else image.shape
+                self._file.write(_HEADER.pack(_MAGIC, kind, stamp, action, rows, cols,
+                                              len(payload)))
+                self._file.write(payload)
+                written += 1
+            self._file.flush()
+        return written
+
+    def adopt(self, newest: Dict[int, int]) -> None:
+        """Take over the segments of an earlier process ({segment: newest stamp in it})."""
+        with self._lock:
+            for segment, stamp in newest.items():
+                if segment != self.segment:
+                    self._newest[segment] = stamp
+
+    def delete_older_than(self, stamp: int) -> int:
+        """Delete the finished segments that hold only steps older than ``stamp``."""
+        deleted = 0
+        with self._lock:
+            for segment, newest in list(self._newest.items()):
+                if segment != self.segment and newest < stamp:
+                    self.segment_path(segment).unlink(missing_ok=True)
+                    del self._newest[segment]
+                    deleted += 1
+        return deleted
+
+    def close(self) -> None:
+        self.drain()
+        with self._lock:
+            self._file.close()
+
+    @staticmethod
+    def read(directory: Path, newest: Optional[Dict[int, int]] = None
+             ) -> Iterator[Tuple[int, int, int, object]]:
+        """
+        Yield (kind, stamp, action, image or None) from every segment, oldest first.
+
+        A record cut short by a crash ends its segment's reading. ``newest``, if given, is
+        filled with {segment: newest stamp in it}.
+        """
+        paths = sorted(Path(directory).glob('segment-*.bin'))
+        for path in paths:
+            segment = int(path.stem.split('-')[1])
+            data = path.read_bytes()
+            offset = 0
+            while offset + _HEADER.size <= len(data):
+                magic, kind, stamp, action, rows, cols, size = _HEADER.unpack_from(data, offset)
+                end = offset + _HEADER.size + size
+                if magic != _MAGIC or end > len(data):
+                    break
+                image = None
+                if rows:
+                    try:
+                        pixels = zlib.decompress(data[offset + _HEADER.size:end])
+                    except zlib.error:
+                        break
+                    if len(pixels) != rows * cols:
+                        break
+                    image = torch.from_numpy(
+                        np.frombuffer(pixels, np.uint8).reshape(rows, cols).copy())
+                if newest is not None:
+                    newest[segment] = max(stamp, newest.get(segment, stamp))
+                yield kind, stamp, action, image
+                offset = end
+
+    @staticmethod
+    def last_segment(directory: Path) -> int:
+        segments = [int(p.stem.split('-')[1]) for p in Path(directory).glob('segment-*.bin')]
+        return max(segments, default=-1)
+
+
+def save_checkpoint(state: dict, run_dir: Path) -> Path:
+    """Write ``state`` atomically to <run_dir>/checkpoints/checkpoint.pt."""
+    directory = Path(run_dir) / CHECKPOINT_DIR
+    directory.mkdir(parents=True, exist_ok=True)
+    final = directory / CHECKPOINT_FILE
+    temporary = directory / (CHECKPOINT_FILE + '.tmp')
+    with open(temporary, 'wb') as file:
+        torch.save(state, file)
+        file.flush()
+        os.fsync(file.fileno())
+    os.replace(temporary, final)
+    directory_fd = os.open(directory, os.O_RDONLY)
+    try:
+        os.fsync(directory_fd)  # the rename itself is durable too
+    finally:
+        os.close(directory_fd)
+    return final
+
+
+def load_checkpoint(run_dir: Path) -> Optional[dict]:
+    """Return the last checkpoint of a run, or None if it has none."""
+    path = Path(run_dir) / CHECKPOINT_DIR / CHECKPOINT_FILE
+    if not path.exists():
+        return None
+    return torch.load(path, map_location='cpu', weights_only=True)
+
+
+class MetricsCsv:
+    """metrics.csv: the columns of the first row written (or of the existing header)."""
+
+    def __init__(self, path: Path):
+        self.path = Path(path)
+        self.columns: Optional[List[str]] = None
+        if self.path.exists() and self.path.stat().st_size > 0:
+            with open(self.path, newline='', encoding='utf-8') as file:
+                self.columns = next(csv.reader(file), None)
+
+    def write(self, row: Dict[str, object]) -> None:
+        new_file = self.columns is None
+        if new_file:
+            self.columns = ['wall_time'] + sorted(k for k in row if k != 'wall_time')
+        with open(self.path, 'a', newline='', encoding='utf-8') as file:
+            writer = csv.writer(file)
+            if new_file:
+                writer.writerow(self.columns)
+            writer.writerow([row.get(column, '') for column in self.columns])
+
+
+class DiskWriter(threading.Thread):
+    """The thread that does the run's slow disk work: journal drains, checkpoints, CSV rows."""
+
+    def __init__(self, journal: StepJournal, on_error: Callable[[str], None],
+                 drain_period_s: float = 0.2):
+        super().__init__(name='tamer-disk', daemon=True)
+        self._journal = journal
+        self._jobs: 'queue.Queue[Optional[Callable[[], None]]]' = queue.Queue()
+        self._on_error = on_error
+        self._period = drain_period_s
+        self.errors = 0
+
+    def submit(self, job: Callable[[], None]) -> None:
+        self._jobs.put(job)
+
+    def run(self) -> None:
+        while True:
+            try:
+                job = self._jobs.get(timeout=self._period)
+            except queue.Empty:
+                job = self._drain
+            if job is None:
+                self._guard(self._drain)
+                return
+            self._guard(job)
+            if job is not self._drain:
+                self._guard(self._drain)
+
+    def flush(self, timeout: float = 30.0) -> bool:
+        """Wait until every job submitted so far is done (or the thread is not running)."""
+        if not self.is_alive():
+            return False
+        done = threading.Event()
+        self.submit(done.set)
+        return done.wait(timeout)
+
+    def stop(self, timeout: float = 30.0) -> None:
+        self._jobs.put(None)
+        self.join(timeout)
+
+    def _drain(self) -> None:
+        self._journal.drain()
+
+    def _guard(self, job) -> None:
+        try:
+            job()
+        except Exception as error:  # a full disk must not kill the node
+            self.errors += 1
+            self._on_error(f'disk write failed: {error!r}')

@@ -1,0 +1,401 @@
+"""
+The learner thread, and how it shares the work with the acting path.
+
+Concurrency contract
+--------------------
+Four kinds of thread touch the agent; each owns its objects and hands over through one point.
+
+- Acting (the ``observation``/``saliency`` callbacks, or a benchmark loop): preprocesses the
+  image, stores the step in the ``StepHistory``, picks the greedy action with its *own* copy of H
+  (``ActingModel``, in eval mode for its whole life), queues journal records. It takes only short
+  locks (history, snapshot slot) and never waits for training, sampling or disk I/O.
+- Feedback (the ``feedback*`` callbacks): numbers the feedback and queues it to the disk
+  thread, which drains the step journal, appends the feedback to ``feedback_log.jsonl``
+  (flushed) and only then puts it in the learner's inbox: what the learner uses is on disk, in
+  arrival order.
+- Learner (``LearnerWorker``): the only thread that uses the ``Learner`` (the model being
+  trained and its optimizer) and that adds to the ``FeedbackBuffer``. It handles events strictly
+  in arrival order; after every update it publishes a copy of the weights with a version number
+  (the update count) in the ``SnapshotSlot``; the acting copy loads a newer version just before
+  it acts. The trained model's train/eval mode is never flipped.
+- Disk (``persistence.DiskWriter``): one FIFO of jobs: the feedback log, journal drains,
+  checkpoint files (small: the buffer's images are in the journal), metrics rows.
+- Metrics (a timer callback): reads counters under the learner's small lock.
+
+Pairing with saliency images: the steps a feedback credits may still wait for their saliency
+image. The event stays at the head of the pending queue until every such image came, an image of
+a later step came on that stream (so this one never will), or ``saliency_timeout_s`` of wall time
+passed; then the steps without an image are used without the L2 term. Nothing waits forever, and
+the events behind it wait no longer than that.
+
+Checkpoints are taken by the learner between updates (consistent copies: every feedback up to
+``applied_seq`` is in the buffer and the counters, none after it) and written by the disk thread.
+"""
+
+import collections
+import copy
+from dataclasses import dataclass
+import math
+from pathlib import Path
+import threading
+import time
+from typing import Callable, Dict, List, Optional
+
+import numpy as np
+from tamer_node.buffer import collate, FeedbackBuffer, Sample
+from tamer_node.config import TamerConfig
+from tamer_node.credit import step_credit, window_credit
+from tamer_node.history import IMAGE_KINDS, other_kind, StepHistory
+from tamer_node.learner import Learner
+from tamer_node.model import HModel, INPUT_SHAPE, to_input
+from tamer_node.persistence import DiskWriter, KIND_NAMES, save_checkpoint, StepJournal
+import torch
+
+CHECKPOINT_FORMAT = 'tamer_node.checkpoint/1'
+
+COUNTERS = (
+    'feedback/count', 'feedback/duplicates', 'feedback/invalid', 'feedback/unmatched',
+    'feedback/processed', 'samples/added', 'pairing/with_saliency', 'pairing/without_saliency',
+    'train/updates', 'train/immediate_updates', 'train/skipped_nonfinite', 'train/errors',
+    'checkpoint/count', 'resume/replayed', 'resume/samples_without_images',
+)
+
+
+@dataclass
+class FeedbackEvent:
+    """One feedback as the learner receives it (and as feedback_log.jsonl records it)."""
+
+    seq: int
+    """1, 2, 3, ... in order of arrival over the whole run."""
+    h: float
+    stamp: Optional[int]
+    """The step it is attributed to: its header stamp, or the arrival stamp if unstamped."""
+    now: Optional[int]
+    """The newest observation stamp when it arrived (the window's t)."""
+    status: str
+    """'ok', 'duplicate' (the plain copy of a stamped one), 'invalid', 'no_observation'."""
+    credit: str
+    """Credit mode in force when it arrived."""
+    arrived: float = 0.0
+    """time.monotonic() at arrival (the saliency pairing deadline starts here)."""
+
+
+class SnapshotSlot:
+    """The newest weight snapshot and its version; the learner writes, the actor reads."""
+
+    def __init__(self):
+        self._lock = threading.Lock()
+        self._version = 0
+        self._state: Optional[Dict[str, torch.Tensor]] = None
+
+    def publish(self, version: int, state: Dict[str, torch.Tensor]) -> None:
+        with self._lock:
+            self._version, self._state = version, state
+
+    def newer_than(self, version: int):
+        """(version, state) if a newer snapshot exists, else None."""
+        with self._lock:
+            if self._state is None or self._version <= version:
+                return None
+            return self._version, self._state
+
+
+class ActingModel:
+    """The actor's own copy of H: eval mode forever, refreshed from snapshots."""
+
+    def __init__(self, model: HModel):
+        self.model = copy.deepcopy(model).eval()
+        self.model.requires_grad_(False)
+        self.version = 0
+
+    def refresh(self, slot: SnapshotSlot) -> None:
+        newer = slot.newer_than(self.version)
+        if newer is not None:
+            self.version, state = newer
+            self.model.load_state_dict(state)
+
+    def predict(self, image: torch.Tensor) -> torch.Tensor:
+        with torch.inference_mode():
+            return self.model(to_input(image))[0]
+
+    def greedy(self, image: torch.Tensor) -> int:
+        """argmax_a H(s, a): the thesis's greedy policy (ties: the lowest action index)."""
+        return int(torch.argmax(self.predict(image)))
+
+
+class LearnerWorker(threading.Thread):
+    """Turns feedback into samples and trains on them, in its own thread."""
+
+    def __init__(self, config: TamerConfig, learner: Learner, buffer: FeedbackBuffer,
+                 history: StepHistory, slot: SnapshotSlot, journal: StepJournal,
+                 disk: DiskWriter, run_dir: Path, log: Callable[[str, str], None]):
+        super().__init__(name='tamer-learner', daemon=True)
+        self.config = config
+        self.learner = learner
+        self.buffer = buffer
+        self.history = history
+        self.slot = slot
+        self.journal = journal
+        self.disk = disk
+        self.run_dir = Path(run_dir)
+        self._log = log
+        self._rng = np.random.default_rng(config.seed)
+        self._inbox: 'collections.deque[FeedbackEvent]' = collections.deque()
+        self._pending: 'collections.deque[FeedbackEvent]' = collections.deque()
+        self._wake = threading.Event()
+        self._stopping = threading.Event()
+        self._lock = threading.Lock()  # guards counters and last losses for readers
+        self.counters = collections.Counter(dict.fromkeys(COUNTERS, 0))
+        self.last_losses = {'loss': math.nan, 'mse': math.nan, 'l2': math.nan}
+        self.applied_seq = 0
+        self.checkpoint_error: Optional[str] = None
+
+    # Producers (any thread).
+    def submit(self, event: FeedbackEvent) -> None:
+        self._inbox.append(event)
+        self._wake.set()
+
+    def wake(self) -> None:
+        """Something the pending events may wait for (a saliency image) arrived."""
+        self._wake.set()
+
+    def stats(self) -> dict:
+        with self._lock:
+            stats = dict(self.counters)
+            stats.update({f'train/{k}': v for k, v in self.last_losses.items()})
+        stats['pairing/pending'] = len(self._pending) + len(self._inbox)
+        stats['buffer/size'] = len(self.buffer)
+        stats['model/version'] = self.learner.updates
+        stats['feedback/applied_seq'] = self.applied_seq
+        return stats
+
+    # The thread.
+    def run(self) -> None:
+        period = 1.0 / self.config.update_rate_hz if self.config.update_rate_hz > 0 else None
+        next_update = time.monotonic()
+        checkpoint_period = self.config.checkpoint_period_s
+        next_checkpoint = time.monotonic() + checkpoint_period if checkpoint_period else math.inf
+        while not self._stopping.is_set():
+            self._wake.clear()
+            now = time.monotonic()
+            try:
+                self._resolve(force=False)
+                if period is not None and len(self.buffer) and now >= next_update:
+                    batch = self.buffer.sample(self.config.batch_size, self._rng)
+                    self._update(batch, immediate=False)
+                    # Fixed rate; when late, go on from now rather than burst to catch up.
+                    next_update = max(next_update + period, now)
+                if now >= next_checkpoint:
+                    next_checkpoint = now + checkpoint_period
+                    self.checkpoint()
+            except Exception as error:  # the learner must outlive any one bad update
+                with self._lock:
+                    self.counters['train/errors'] += 1
+                self._log('error', f'learner step failed: {error!r}')
+                next_update = now + (period or 0.0)
+            deadlines = [next_checkpoint, now + 0.1]
+            if period is not None and len(self.buffer):
+                deadlines.append(next_update)
+            if self._pending:
+                deadlines.append(self._pending[0].arrived + self.config.saliency_timeout_s)
+            self._wake.wait(max(0.0, min(deadlines) - time.monotonic()))
+        self._resolve(force=True)  # nothing left half-done at exit
+        self.checkpoint()
+
+    def stop(self, timeout: float = 30.0) -> None:
+        self._stopping.set()
+        self._wake.set()
+        self.join(timeout)
+
+    # Feedback -> samples.
+    def _resolve(self, force: bool) -> None:
+        """Move inbox events to pending; use the pending ones whose pairing is settled."""
+        while self._inbox:
+            self._pending.append(self._inbox.popleft())
+        fresh: List[Sample] = []
+        now = time.monotonic()
+        while self._pending:
+            event = self._pending[0]
+            timed_out = force or now - event.arrived >= self.config.saliency_timeout_s
+            if not timed_out and not self._pairing_settled(event):
+                break
+            self._pending.popleft()
+            fresh += self.process(event, self.history)
+        if fresh and self.config.immediate_update:
+            # Deep TAMER's immediate update on the new feedback's samples (events that came
+            # together, e.g. while an update ran, share one step).
+            self._update(collate(fresh), immediate=True)
+
+    def _pairing_settled(self, event: FeedbackEvent) -> bool:
+        if not self._wants_companion() or event.status != 'ok':
+            return True
+        companion = other_kind(self.config.input_image)
+        return all(self.history.settled(stamp, companion)
+                   for stamp in self._credit(event, self.history))
+
+    def _wants_companion(self) -> bool:
+        return self.learner.alpha > 0.0
+
+    def _credit(self, event: FeedbackEvent, history: StepHistory) -> Dict[int, float]:
+        if event.credit == 'window':
+            if event.now is None:
+                return {}
+            return window_credit(history.acted_spans(event.now), event.now,
+                                 self.config.window_min_s, self.config.window_max_s)
+        record = history.get(event.stamp) if event.stamp is not None else None
+        known = [event.stamp] if record is not None and record.action is not None else []
+        return step_credit(event.stamp, known)
+
+    def process(self, event: FeedbackEvent, history: StepHistory) -> List[Sample]:
+        """Count the event and return its samples (already added to the buffer)."""
+        samples: List[Sample] = []
+        counts = collections.Counter({'feedback/processed': 1})
+        if event.status == 'ok':
+            credit = self._credit(event, history)
+            kind = self.config.input_image
+            for stamp, weight in sorted(credit.items()):
+                record = history.get(stamp)
+                if record is None or record.image(kind) is None:
+                    continue  # evicted meanwhile, or never had the image acted on
+                state, companion = record.image(kind), record.image(other_kind(kind))
+                counts['pairing/with_saliency' if companion is not None
+                       else 'pairing/without_saliency'] += 1
+                samples.append(Sample(state, companion, record.action, float(event.h),
+                                      float(weight), stamp, event.seq))
+            if samples:
+                counts['feedback/count'] += 1
+                counts['samples/added'] += len(samples)
+            else:
+                counts['feedback/unmatched'] += 1
+                self._log('warn', f'feedback #{event.seq} (h={event.h}) matches no step the '
+                          f'agent acted on (credit {event.credit}, stamp {event.stamp}); '
+                          'kept in the log, not learned from')
+        elif event.status == 'duplicate':
+            counts['feedback/duplicates'] += 1
+        elif event.status == 'invalid':
+            counts['feedback/invalid'] += 1
+        else:
+            counts['feedback/unmatched'] += 1
+        if not self._wants_companion():
+            counts.pop('pairing/without_saliency', None)
+        self.buffer.extend(samples)
+        with self._lock:
+            self.counters.update(counts)
+        self.applied_seq = max(self.applied_seq, event.seq)
+        return samples
+
+    def _update(self, batch, immediate: bool) -> None:
+        losses = self.learner.train_step(batch)
+        if losses['skipped']:
+            with self._lock:
+                self.counters['train/skipped_nonfinite'] += 1
+            self._log('warn', f'update skipped: the loss is not finite ({losses["loss"]})')
+            return
+        self.slot.publish(self.learner.updates, self.learner.snapshot())
+        with self._lock:
+            self.last_losses = {k: losses[k] for k in ('loss', 'mse', 'l2')}
+            self.counters['train/updates'] += 1
+            if immediate:
+                self.counters['train/immediate_updates'] += 1
+
+    # Checkpoints and resume.
+    def checkpoint(self) -> int:
+        """
+        Copy the state now (learner thread, between updates); write it on the disk thread.
+
+        The buffer goes in without its images: they are in the step journal, found again by
+        stamp on resume. The journal keeps every step the buffer or the history still holds.
+        """
+        segment = self.journal.rotate()
+        buffer_state = self.buffer.state_dict(images=False)
+        stamps = buffer_state['columns']['stamps']
+        needed = [int(stamps.min())] if len(stamps) else []
+        if self.history.oldest() is not None:
+            needed.append(self.history.oldest())
+        with self._lock:
+            self.counters['checkpoint/count'] += 1
+            counters = dict(self.counters)
+        state = {
+            'format': CHECKPOINT_FORMAT,
+            'learner': copy.deepcopy(self.learner.state_dict()),
+            'buffer': buffer_state,
+            'input_image': self.config.input_image,
+            'counters': counters,
+            'applied_seq': self.applied_seq,
+            'saved_at': time.time(),
+        }
+
+        def write() -> None:
+            self.journal.drain()  # every step the checkpoint refers to is on disk first
+            save_checkpoint(state, self.run_dir)
+            if needed:
+                self.journal.delete_older_than(min(needed))
+
+        self.disk.submit(write)
+        return segment
+
+    def restore(self, checkpoint: Optional[dict], events: List[FeedbackEvent],
+                journal_records) -> int:
+        """Load a checkpoint, replay the logged feedback after it; return how many replayed."""
+        steps = StepHistory(capacity=1 << 30)
+        for kind, stamp, action, image in journal_records:
+            if image is not None and kind in KIND_NAMES:
+                steps.put_image(KIND_NAMES[kind], stamp, image)
+            elif action >= 0:
+                steps.set_action(stamp, action)
+        if checkpoint is not None:
+            if checkpoint.get('format') != CHECKPOINT_FORMAT:
+                raise ValueError('the checkpoint was not written by this tamer_node version')
+            self.learner.load_state_dict(checkpoint['learner'])
+            buffer_state = checkpoint['buffer']
+            if 'states' not in buffer_state:
+                buffer_state = self._find_images(buffer_state, steps,
+                                                 checkpoint.get('input_image', 'observation'))
+            self.buffer.load_state_dict(buffer_state)
+            self.counters.update({k: int(v) for k, v in checkpoint['counters'].items()
+                                  if k in COUNTERS})
+            self.applied_seq = int(checkpoint['applied_seq'])
+            self._rng = np.random.default_rng([self.config.seed, self.learner.updates])
+        replayed = 0
+        for event in events:
+            if event.seq > self.applied_seq:
+                self.process(event, steps)
+                replayed += 1
+        with self._lock:
+            self.counters['resume/replayed'] += replayed
+        for record in steps.records()[-self.history.capacity:]:
+            for kind in IMAGE_KINDS:
+                if record.image(kind) is not None:
+                    self.history.put_image(kind, record.stamp, record.image(kind))
+            if record.action is not None:
+                self.history.set_action(record.stamp, record.action)
+        self.slot.publish(self.learner.updates, self.learner.snapshot())
+        return replayed
+
+    def _find_images(self, state: dict, steps: StepHistory, kind: str) -> dict:
+        """Put the journal's images back into a buffer state saved without them."""
+        columns = {name: values.numpy() for name, values in state['columns'].items()}
+        keep, states, companions = [], [], []
+        for row, (stamp, has) in enumerate(zip(columns['stamps'], columns['has_companion'])):
+            record = steps.get(int(stamp))
+            image = record.image(kind) if record is not None else None
+            companion = record.image(other_kind(kind)) if record is not None and has else None
+            if image is None or (has and companion is None):
+                continue
+            keep.append(row)
+            states.append(image)
+            if has:
+                companions.append(companion)
+        missing = len(columns['stamps']) - len(keep)
+        if missing:
+            with self._lock:
+                self.counters['resume/samples_without_images'] += missing
+            self._log('warn', f'{missing} buffer sample(s) lost: their steps are not in the '
+                      'journal any more')
+        empty = torch.zeros((0,) + INPUT_SHAPE, dtype=torch.uint8)
+        return {
+            'capacity': state['capacity'], 'added': state['added'],
+            'columns': {name: torch.from_numpy(values[keep]) for name, values in columns.items()},
+            'states': torch.stack(states) if states else empty,
+            'companions': torch.stack(companions) if companions else empty,
+        }

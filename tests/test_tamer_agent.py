@@ -1,0 +1,414 @@
+"""TamerAgent (no rclpy): attribution, saliency pairing, concurrency, files, resume."""
+
+import json
+import threading
+
+from harness import wait_until
+import numpy as np
+import pytest
+from tamer_node.agent import BadInput, TamerAgent
+from tamer_node.config import TamerConfig
+from tamer_node.credit import NS_PER_S
+from tamer_node.model import Encoder, INPUT_SHAPE
+from tamer_node.persistence import (
+    CHECKPOINT_DIR, CHECKPOINT_FILE, FEEDBACK_LOG, FeedbackLog, KIND_ACTION, KIND_OBSERVATION,
+    load_checkpoint, StepJournal)
+import torch
+
+torch.set_num_threads(1)
+STEP_NS = NS_PER_S // 15
+RNG = np.random.default_rng(0)
+FRAMES = RNG.integers(0, 256, (40, 210, 160, 3), np.uint8)
+
+
+def make_agent(run_dir, **changes):
+    settings = {'update_rate_hz': 50.0, 'checkpoint_period_s': 0.0, 'saliency_timeout_s': 0.3,
+                'metrics_period_s': 0.5}
+    settings.update(changes)
+    config = TamerConfig(**settings)
+    torch.manual_seed(0)
+    messages = []
+    agent = TamerAgent(config, run_dir, encoder=Encoder(),
+                       log=lambda level, text: messages.append((level, text)))
+    agent.messages = messages
+    agent.start()
+    return agent
+
+
+@pytest.fixture
+def agents(tmp_path):
+    made = []
+
+    def make(run_dir=None, **changes):
+        agent = make_agent(run_dir or tmp_path / 'run', **changes)
+        made.append(agent)
+        return agent
+
+    yield make
+    for agent in made:
+        agent.close()
+
+
+def stamp(i):
+    return (i + 1) * STEP_NS
+
+
+def play(agent, steps, first=0):
+    """Show observations; return {stamp: action}."""
+    return {stamp(i): agent.on_observation(stamp(i), FRAMES[i % len(FRAMES)])
+            for i in range(first, first + steps)}
+
+
+def processed(agent, count, timeout=10.0):
+    return wait_until(lambda: agent.worker.stats()['feedback/processed'] >= count, timeout)
+
+
+def log_lines(run_dir):
+    return [json.loads(line) for line in (run_dir / FEEDBACK_LOG).read_text().splitlines()]
+
+
+def test_stamped_feedback_labels_exactly_the_judged_step(agents):
+    agent = agents()
+    actions = play(agent, 6)
+    agent.on_feedback(1.0, 'stamped', stamp(2))
+    agent.on_feedback(-1.0, 'stamped', stamp(4))
+    assert processed(agent, 2)
+    samples = {s.stamp: s for s in agent.buffer.samples()}
+    assert set(samples) == {stamp(2), stamp(4)}
+    assert samples[stamp(2)].action == actions[stamp(2)] and samples[stamp(2)].h == 1.0
+    assert samples[stamp(4)].h == -1.0 and samples[stamp(4)].weight == 1.0
+    assert agent.metrics()['feedback/count'] == 2
+
+
+def test_feedback_for_an_unknown_step_is_logged_and_counted(agents, tmp_path):
+    agent = agents()
+    play(agent, 3)
+    agent.on_feedback(1.0, 'stamped', stamp(50))
+    assert processed(agent, 1)
+    assert agent.metrics()['feedback/unmatched'] == 1 and len(agent.buffer) == 0
+    assert log_lines(tmp_path / 'run')[0]['stamp_ns'] == stamp(50)
+    assert any(level == 'warn' for level, _ in agent.messages)
+
+
+def test_plain_feedback_is_a_copy_while_stamped_feedback_flows(agents, tmp_path):
+    agent = agents(stamped_active_s=60.0)
+    play(agent, 4)
+    agent.on_feedback(1.0, 'stamped', stamp(1))
+    agent.on_feedback(1.0, 'plain')
+    assert processed(agent, 2)
+    metrics = agent.metrics()
+    assert metrics['feedback/duplicates'] == 1 and metrics['feedback/count'] == 1
+    assert [e['status'] for e in log_lines(tmp_path / 'run')] == ['ok', 'duplicate']
+
+
+def test_plain_feedback_without_a_stamped_stream_is_stamped_on_arrival(agents):
+    agent = agents(credit='step')
+    actions = play(agent, 5)
+    agent.on_feedback(-1.0, 'plain')
+    assert processed(agent, 1)
+    [sample] = agent.buffer.samples()
+    assert sample.stamp == stamp(4) and sample.action == actions[stamp(4)]
+
+
+def test_window_credit_spreads_a_person_feedback_over_the_window(agents):
+    agent = agents(credit='window')
+    play(agent, 90)  # 6 s at 15 Hz
+    agent.on_feedback(1.0, 'plain')
+    assert processed(agent, 1)
+    samples = agent.buffer.samples()
+    now = stamp(89)
+    assert sum(s.weight for s in samples) == pytest.approx(1.0, abs=1e-6)
+    assert all(now - 4 * NS_PER_S - STEP_NS <= s.stamp <= now - 0.2 * NS_PER_S
+               for s in samples)
+    assert len(samples) == pytest.approx(3.8 * 15, abs=2)
+
+
+def test_feedback_before_any_observation_is_kept_in_the_log(agents, tmp_path):
+    agent = agents()
+    agent.on_feedback(1.0, 'plain')
+    assert processed(agent, 1)
+    assert log_lines(tmp_path / 'run')[0]['status'] == 'no_observation'
+    assert agent.metrics()['feedback/unmatched'] == 1
+
+
+@pytest.mark.parametrize('value', [float('nan'), float('inf'), -float('inf'), 1e9])
+def test_bad_feedback_values_are_logged_counted_and_not_learned(agents, tmp_path, value):
+    agent = agents()
+    play(agent, 2)
+    agent.on_feedback(value, 'stamped', stamp(0))
+    agent.on_feedback(1.0, 'stamped', stamp(1))
+    assert processed(agent, 2)
+    metrics = agent.metrics()
+    assert metrics['feedback/invalid'] == 1 and metrics['feedback/count'] == 1
+    assert [s.stamp for s in agent.buffer.samples()] == [stamp(1)]
+    entry = log_lines(tmp_path / 'run')[0]
+    assert entry['status'] == 'invalid'
+    assert float(entry['h']) == value or (np.isnan(value) and np.isnan(float(entry['h'])))
+
+
+def test_bad_images_are_counted_and_dropped(agents):
+    agent = agents()
+    for bad in (FRAMES[0][:, :, 0], FRAMES[0][:100], np.zeros((210, 160, 4), np.uint8)):
+        with pytest.raises(BadInput):
+            agent.on_observation(stamp(0), bad)
+        with pytest.raises(BadInput):
+            agent.on_saliency(stamp(0), bad)
+    assert agent.metrics()['drop/observation'] == 3 and agent.metrics()['drop/saliency'] == 3
+    assert agent.on_observation(stamp(0), FRAMES[0]) is not None
+
+
+def test_a_step_sent_twice_gets_the_same_answer(agents):
+    agent = agents()
+    first = agent.on_observation(stamp(0), FRAMES[0])
+    assert agent.on_observation(stamp(0), FRAMES[1]) == first
+
+
+# Pairing with saliency images.
+def test_saliency_that_comes_later_is_paired_by_stamp(agents):
+    agent = agents(alpha=1e-4, saliency_timeout_s=30.0)
+    play(agent, 3)
+    agent.on_feedback(1.0, 'stamped', stamp(1))
+    assert not processed(agent, 1, timeout=0.3)  # waits for saliency 1 (or a later one)
+    agent.on_saliency(stamp(1), FRAMES[7])
+    assert processed(agent, 1)
+    [sample] = agent.buffer.samples()
+    assert sample.companion is not None
+    assert agent.metrics()['pairing/with_saliency'] == 1
+
+
+def test_saliency_that_never_comes_times_out_without_l2(agents):
+    agent = agents(alpha=1e-4, saliency_timeout_s=0.2)
+    play(agent, 3)
+    agent.on_feedback(1.0, 'stamped', stamp(1))
+    assert processed(agent, 1, timeout=5.0)
+    [sample] = agent.buffer.samples()
+    assert sample.companion is None
+    assert agent.metrics()['pairing/without_saliency'] == 1
+
+
+def test_a_later_saliency_image_settles_the_pairing_at_once(agents):
+    agent = agents(alpha=1e-4, saliency_timeout_s=30.0)
+    play(agent, 4)
+    agent.on_feedback(1.0, 'stamped', stamp(1))
+    agent.on_saliency(stamp(2), FRAMES[2])  # the saliency stream skipped step 1
+    assert processed(agent, 1, timeout=5.0)
+    assert agent.buffer.samples()[0].companion is None
+
+
+def test_alpha_zero_does_not_wait_for_saliency(agents):
+    agent = agents(alpha=0.0, saliency_timeout_s=30.0)
+    play(agent, 3)
+    agent.on_feedback(1.0, 'stamped', stamp(1))
+    assert processed(agent, 1, timeout=5.0)
+
+
+def test_saliency_input_acts_on_the_saliency_image(agents):
+    agent = agents(input_image='saliency', alpha=0.0)
+    assert agent.on_observation(stamp(0), FRAMES[0]) is None
+    action = agent.on_saliency(stamp(0), FRAMES[1])
+    assert action is not None
+    agent.on_feedback(1.0, 'stamped', stamp(0))
+    assert processed(agent, 1)
+    [sample] = agent.buffer.samples()
+    assert torch.equal(sample.state, agent.history.get(stamp(0)).saliency)
+    assert torch.equal(sample.companion, agent.history.get(stamp(0)).observation)
+
+
+# Acting and training run apart.
+def test_acting_never_waits_for_training_or_disk(agents):
+    agent = agents()
+    release = threading.Event()
+    entered = threading.Event()
+    train_step = agent.learner.train_step
+
+    def blocked_train_step(batch):
+        entered.set()
+        release.wait(30)
+        return train_step(batch)
+
+    agent.learner.train_step = blocked_train_step
+    play(agent, 2)
+    agent.on_feedback(1.0, 'stamped', stamp(0))
+    assert entered.wait(10)  # the learner is now inside an update that does not end
+    agent.disk.submit(lambda: release.wait(30))  # and the disk thread is stuck too
+    answered = []
+    actor = threading.Thread(target=lambda: answered.append(play(agent, 50, first=2)))
+    actor.start()
+    actor.join(10)
+    release.set()
+    assert answered and len(answered[0]) == 50 and None not in answered[0].values()
+
+
+def test_weight_snapshots_reach_the_acting_copy(agents):
+    agent = agents()
+    play(agent, 10)
+    for i in range(10):
+        agent.on_feedback(1.0, 'stamped', stamp(i))
+    # train/updates counts an update once its snapshot is published.
+    assert wait_until(lambda: agent.worker.stats()['train/updates'] >= 5, 10)
+    play(agent, 1, first=10)
+    assert agent.actor.version >= 5
+    assert agent.actor.model.training is False and agent.learner.model.training is True
+    for name, tensor in agent.actor.model.state_dict().items():
+        assert tensor.data_ptr() != agent.learner.model.state_dict()[name].data_ptr()
+
+
+# Files, checkpoints and resume.
+def state_of(agent):
+    return {
+        'model': {k: v.clone() for k, v in agent.learner.model.state_dict().items()},
+        'optimizer_steps': [float(s['step']) for s in
+                            agent.learner.optimizer.state_dict()['state'].values()],
+        'buffer': [(s.stamp, s.seq, s.action, s.h, s.weight, s.companion is not None,
+                    int(s.state.sum())) for s in agent.buffer.samples()],
+        'updates': agent.learner.updates,
+    }
+
+
+def feed(agent, steps, first=0, saliency_every=3):
+    play(agent, steps, first)
+    for i in range(first, first + steps):
+        if i % saliency_every == 0:
+            agent.on_saliency(stamp(i), FRAMES[(i + 5) % len(FRAMES)])
+        agent.on_feedback(1.0 if i % 2 else -1.0, 'stamped', stamp(i))
+
+
+def test_checkpoint_round_trip(tmp_path):
+    run = tmp_path / 'run'
+    agent = make_agent(run, alpha=1e-4, saliency_timeout_s=0.05)
+    feed(agent, 20)
+    assert processed(agent, 20)
+    agent.close()  # last checkpoint
+    before = state_of(agent)
+    counters = dict(agent.worker.stats())
+    checkpoint = load_checkpoint(run)
+    assert checkpoint['applied_seq'] == 20
+    resumed = make_agent(run, resume=True)
+    try:
+        after = state_of(resumed)
+        for name, tensor in before['model'].items():
+            assert torch.equal(tensor, after['model'][name]), name
+        assert before['buffer'] == after['buffer'] and len(after['buffer']) == 20
+        assert before['optimizer_steps'] == after['optimizer_steps']
+        assert after['updates'] == before['updates'] > 0
+        stats = resumed.worker.stats()
+        for key in ('feedback/count', 'samples/added', 'pairing/with_saliency'):
+            assert stats[key] == counters[key]
+        assert stats['resume/replayed'] == 0
+        assert resumed.metrics()['feedback/received'] == 20
+    finally:
+        resumed.close()
+
+
+def test_resume_replays_the_logged_feedback_newer_than_the_checkpoint(tmp_path):
+    """Without any checkpoint, the whole log is replayed from the step journal."""
+    run = tmp_path / 'run'
+    agent = make_agent(run, alpha=1e-4, saliency_timeout_s=0.05)
+    feed(agent, 25)
+    assert processed(agent, 25)
+    agent.close()
+    expected = state_of(agent)['buffer']
+    (run / CHECKPOINT_DIR / CHECKPOINT_FILE).unlink()  # as if it crashed before one
+    resumed = make_agent(run, resume=True)
+    try:
+        assert state_of(resumed)['buffer'] == expected
+        stats = resumed.worker.stats()
+        assert stats['resume/replayed'] == 25 and stats['feedback/count'] == 25
+        # It carries on: new feedback continues the sequence.
+        resumed.on_feedback(1.0, 'stamped', stamp(24))
+        assert processed(resumed, 26)
+        assert log_lines(run)[-1]['seq'] == 26
+    finally:
+        resumed.close()
+
+
+def test_periodic_checkpoints_are_atomic_and_prune_the_journal(tmp_path):
+    run = tmp_path / 'run'
+    agent = make_agent(run, checkpoint_period_s=0.2)
+    try:
+        feed(agent, 10)
+        assert processed(agent, 10)
+
+        def has_everything():
+            # Each load sees a whole file: the old checkpoint or the new one, never a mix.
+            checkpoint = load_checkpoint(run)
+            return checkpoint is not None and checkpoint['applied_seq'] == 10
+
+        assert wait_until(has_everything, 20, interval=0.05)
+        assert wait_until(lambda: agent.worker.stats()['checkpoint/count'] >= 3, 20)
+        # A new segment per checkpoint, but no empty ones are kept.
+        assert wait_until(lambda: len(list((run / 'steps').glob('segment-*.bin'))) <= 2, 20)
+    finally:
+        agent.close()
+    assert not list((run / CHECKPOINT_DIR).glob('*.tmp'))
+
+
+def test_a_run_dir_in_use_needs_resume(tmp_path):
+    run = tmp_path / 'run'
+    make_agent(run).close()
+    (run / FEEDBACK_LOG).write_text('')
+    with pytest.raises(FileExistsError, match='resume'):
+        make_agent(run)
+
+
+def test_a_cut_journal_and_log_are_read_up_to_the_cut(tmp_path):
+    run = tmp_path / 'run'
+    agent = make_agent(run)
+    feed(agent, 5)
+    assert processed(agent, 5)
+    agent.close()
+    log = run / FEEDBACK_LOG
+    log.write_text(log.read_text() + '{"kind": "feedback", "seq": 6, "h"')
+    entries, bad = FeedbackLog.read(log)
+    assert len(entries) == 5 and bad == 1
+    segment = sorted((run / 'steps').glob('segment-*.bin'))[0]
+    whole = list(StepJournal.read(run / 'steps'))
+    segment.write_bytes(segment.read_bytes()[:-100])
+    assert 0 < len(list(StepJournal.read(run / 'steps'))) < len(whole)
+
+
+def test_utterances_are_logged(agents, tmp_path):
+    agent = agents()
+    agent.on_utterance('Climb down the ladder.')
+    agent.on_utterance('   ')
+    agent.on_utterance('x' * 100_000)
+    assert agent.disk.flush()
+    entries = [e for e in log_lines(tmp_path / 'run') if e['kind'] == 'utterance']
+    assert entries[0]['text'] == 'Climb down the ladder.'
+    assert entries[2]['truncated'] is True and len(entries[2]['text']) == 10_000
+    assert agent.metrics()['utterance/empty'] == 1
+
+
+def test_an_unreadable_checkpoint_stops_the_resume_with_advice(tmp_path):
+    run = tmp_path / 'run'
+    agent = make_agent(run)
+    feed(agent, 3)
+    assert processed(agent, 3)
+    agent.close()
+    (run / CHECKPOINT_DIR / CHECKPOINT_FILE).write_bytes(b'not a checkpoint')
+    with pytest.raises(RuntimeError, match='move it away'):
+        make_agent(run, resume=True)
+
+
+def test_the_journal_keeps_only_segments_with_needed_steps(tmp_path):
+    journal = StepJournal(tmp_path, 0)
+    image = torch.full(INPUT_SHAPE, 7, dtype=torch.uint8)
+    journal.append(KIND_OBSERVATION, 10, image=image)
+    journal.append(KIND_ACTION, 10, 3)
+    journal.rotate()
+    journal.append(KIND_OBSERVATION, 20, image=image)
+    journal.rotate()
+    journal.rotate()  # segment 2 stays empty
+    journal.append(KIND_OBSERVATION, 30, image=image)
+    journal.drain()
+
+    def segments():
+        return sorted(int(p.stem.split('-')[1]) for p in tmp_path.glob('segment-*.bin'))
+
+    assert segments() == [0, 1, 3]
+    assert journal.delete_older_than(20) == 1 and segments() == [1, 3]
+    assert [(r[1], int(r[3].sum())) for r in StepJournal.read(tmp_path)] == [
+        (20, 7 * image.numel()), (30, 7 * image.numel())]
+    journal.delete_older_than(10 ** 12)
+    assert segments() == [3]  # never the one being written
+    journal.close()

@@ -1,0 +1,235 @@
+"""tamer_node as a real process, spoken to over topics only."""
+
+import json
+import math
+import signal
+
+from attention_common import qos, topics
+from attention_common.image_codec import numpy_to_image
+from attention_common.joy_actions import joy_to_action
+from attention_common.stamps import ns_to_stamp, stamp_to_ns
+import cv2
+from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import Vector3Stamped
+from harness import wait_until
+import numpy as np
+import pytest
+from rcl_interfaces.msg import Parameter as ParameterMsg
+from rcl_interfaces.msg import ParameterType, ParameterValue
+from rcl_interfaces.srv import SetParameters
+from sensor_msgs.msg import Image, Joy
+from std_msgs.msg import Float32, String
+from tamer_node.pretrain import collect_frames
+
+pytestmark = pytest.mark.topics
+STEP_NS = 1_000_000_000 // 15
+RIGHT = 3
+
+
+@pytest.fixture(scope='module')
+def frames():
+    """Return real Room 1 frames, from a seeded random walk through the real emulator."""
+    collected, _ = collect_frames(30, seed=5, stride=3, use_expert=False)
+    return collected
+
+
+class Graph:
+    """The probe's publishers and subscriptions towards one tamer_node."""
+
+    def __init__(self, probe):
+        self.probe = probe
+        self.observation = probe.publisher(Image, topics.OBSERVATION, qos.FRAMES)
+        self.saliency = probe.publisher(Image, topics.SALIENCY, qos.FRAMES)
+        self.feedback_stamped = probe.publisher(Vector3Stamped, topics.FEEDBACK_STAMPED,
+                                                qos.HUMAN)
+        self.feedback = probe.publisher(Float32, topics.FEEDBACK, qos.HUMAN)
+        self.utterance = probe.publisher(String, topics.UTTERANCE, qos.HUMAN)
+        self.actions = probe.subscribe(Joy, topics.ACTION, qos.ACTIONS)
+        self.metrics = probe.subscribe(DiagnosticArray, topics.METRICS, qos.METRICS)
+
+    def wait_connected(self, node, timeout=60.0):
+        connected = wait_until(lambda: all(
+            p.get_subscription_count() >= 1
+            for p in (self.observation, self.saliency, self.feedback_stamped, self.feedback,
+                      self.utterance)), timeout)
+        assert connected, 'tamer_node did not subscribe in time\n' + node.log_text()[-3000:]
+        assert self.probe.wait_for_publishers(topics.METRICS, timeout=timeout)
+
+    def image(self, array, stamp, encoding='rgb8'):
+        msg = numpy_to_image(array, encoding, Image())
+        msg.header.stamp = ns_to_stamp(stamp)
+        msg.header.frame_id = 'atari'
+        return msg
+
+    def step(self, frame, stamp, saliency=None, timeout=10.0):
+        """Publish an observation (and its saliency image); return the action that answers it."""
+        self.observation.publish(self.image(frame, stamp))
+        if saliency is not None:
+            self.saliency.publish(self.image(saliency, stamp))
+        answered = self.actions.wait_for(
+            lambda msgs: any(stamp_to_ns(m.header.stamp) == stamp for m in msgs), timeout)
+        assert answered, f'no action for stamp {stamp}'
+        joy = next(m for m in self.actions.snapshot() if stamp_to_ns(m.header.stamp) == stamp)
+        return joy_to_action(joy.axes, joy.buttons)
+
+    def judge(self, stamp, h):
+        msg = Vector3Stamped()
+        msg.header.stamp = ns_to_stamp(stamp)
+        msg.vector.x, msg.vector.y, msg.vector.z = float(h), -1.0, 30.0
+        self.feedback_stamped.publish(msg)
+
+    def wait_metrics(self, predicate, timeout=20.0, since=0):
+        """Wait for a metrics message (after index ``since``) whose values satisfy predicate."""
+        def check(messages):
+            return any(predicate(values(m)) for m in messages[since:])
+        return self.metrics.wait_for(check, timeout)
+
+    def latest_metrics(self):
+        messages = self.metrics.snapshot()
+        return values(messages[-1]) if messages else {}
+
+
+def values(msg):
+    return {kv.key: float(kv.value) for kv in msg.status[0].values}
+
+
+def blurred(frame):
+    return cv2.GaussianBlur(frame, (7, 7), 0)
+
+
+def feedback_lines(run_dir):
+    path = run_dir / 'feedback_log.jsonl'
+    return [json.loads(line) for line in path.read_text().splitlines()
+            if json.loads(line)['kind'] == 'feedback']
+
+
+def set_parameter(probe, name, value: float):
+    client = probe.node.create_client(SetParameters, '/tamer_node/set_parameters')
+    assert client.wait_for_service(timeout_sec=10.0)
+    request = SetParameters.Request(parameters=[ParameterMsg(
+        name=name, value=ParameterValue(type=ParameterType.PARAMETER_DOUBLE,
+                                        double_value=value))])
+    future = client.call_async(request)
+    assert wait_until(future.done, 10.0)
+    return future.result().results[0]
+
+
+def test_answers_every_observation_while_it_trains(probe, start_node, tmp_path, frames):
+    run_dir = tmp_path / 'run'
+    node = start_node('tamer_node', {'run_dir': str(run_dir), 'update_rate_hz': 30.0,
+                                     'metrics_period_s': 0.2, 'saliency_timeout_s': 0.3})
+    graph = Graph(probe)
+    graph.wait_connected(node)
+    steps = 60
+    for i in range(steps):
+        stamp = (i + 1) * STEP_NS
+        frame = frames[i % len(frames)]
+        action = graph.step(frame, stamp, saliency=blurred(frame) if i % 2 else None)
+        graph.judge(stamp, 1.0 if action == RIGHT else -1.0)
+    stamps = [stamp_to_ns(m.header.stamp) for m in graph.actions.snapshot()]
+    assert sorted(stamps) == [(i + 1) * STEP_NS for i in range(steps)]  # each once, no other
+    assert graph.wait_metrics(lambda v: v['feedback/count'] == steps
+                              and v['buffer/size'] == steps and v['model/version'] > steps
+                              and v['pairing/with_saliency'] > 0
+                              and v['train/updates_per_s'] > 0), graph.latest_metrics()
+    metrics = graph.latest_metrics()
+    assert math.isfinite(metrics['train/loss']) and metrics['act/version'] > 0
+
+    # alpha changes at run time; other parameters are start-up only.
+    assert set_parameter(probe, 'alpha', 0.0).successful
+    assert graph.wait_metrics(lambda v: v['train/alpha'] == 0.0, since=len(graph.metrics.messages))
+    assert not set_parameter(probe, 'learning_rate', 0.5).successful
+
+    assert node.stop(signal.SIGINT) == 0
+    assert len(feedback_lines(run_dir)) == steps
+    assert (run_dir / 'checkpoints' / 'checkpoint.pt').exists()
+    header = (run_dir / 'metrics.csv').read_text().splitlines()[0].split(',')
+    assert {'train/loss', 'train/mse', 'train/l2', 'feedback/count', 'buffer/size',
+            'train/updates_per_s', 'model/version', 'drop/observation'} <= set(header)
+
+
+def test_kill_9_then_resume_loses_no_logged_feedback(probe, start_node, tmp_path, frames):
+    run_dir = tmp_path / 'run'
+    params = {'run_dir': str(run_dir), 'metrics_period_s': 0.2, 'checkpoint_period_s': 0.0,
+              'alpha': 0.0}
+    graph = Graph(probe)
+
+    def play(first, count):
+        for i in range(first, first + count):
+            stamp = (i + 1) * STEP_NS
+            graph.step(frames[i % len(frames)], stamp)
+            graph.judge(stamp, 1.0 if i % 3 else -1.0)
+
+    # Run 1 ends cleanly with a checkpoint of 15 feedback.
+    first = start_node('tamer_node', params, name='tamer_run1')
+    graph.wait_connected(first)
+    play(0, 15)
+    assert graph.wait_metrics(lambda v: v['feedback/count'] == 15)
+    assert first.stop(signal.SIGINT) == 0
+
+    # Run 2 resumes, gets 12 more (logged, no checkpoint after them), and is killed.
+    since = len(graph.metrics.messages)
+    second = start_node('tamer_node', dict(params, resume=True), name='tamer_run2')
+    graph.wait_connected(second)
+    assert graph.wait_metrics(lambda v: v['feedback/count'] == 15 and v['buffer/size'] == 15,
+                              since=since)
+    play(15, 12)
+    assert graph.wait_metrics(lambda v: v['feedback/logged'] == 27, since=since)
+    second.stop(signal.SIGKILL)
+    logged = feedback_lines(run_dir)
+    assert [e['seq'] for e in logged] == list(range(1, 28))
+
+    # Run 3 restores the checkpoint and replays the 12 from the log and the step journal.
+    since = len(graph.metrics.messages)
+    third = start_node('tamer_node', dict(params, resume=True), name='tamer_run3')
+    graph.wait_connected(third)
+    assert graph.wait_metrics(
+        lambda v: v['resume/replayed'] == 12 and v['feedback/count'] == 27
+        and v['buffer/size'] == 27 and v['feedback/logged'] == 27, since=since), \
+        graph.latest_metrics()
+    play(27, 3)  # and carries on
+    assert graph.wait_metrics(lambda v: v['feedback/count'] == 30, since=since)
+    assert third.stop(signal.SIGINT) == 0
+    assert [e['seq'] for e in feedback_lines(run_dir)] == list(range(1, 31))
+
+
+def test_bad_input_is_dropped_and_counted(probe, start_node, tmp_path, frames):
+    run_dir = tmp_path / 'run'
+    node = start_node('tamer_node', {'run_dir': str(run_dir), 'metrics_period_s': 0.2})
+    graph = Graph(probe)
+    graph.wait_connected(node)
+    frame = frames[0]
+    graph.observation.publish(graph.image(frame[:, :, 0], STEP_NS, 'mono8'))
+    bgr = graph.image(frame, 2 * STEP_NS)
+    bgr.encoding = 'bgr8'
+    graph.observation.publish(bgr)
+    cut = graph.image(frame, 3 * STEP_NS)
+    cut.data = cut.data[:1000]
+    graph.observation.publish(cut)
+    graph.saliency.publish(graph.image(np.zeros((100, 100, 3), np.uint8), 4 * STEP_NS))
+    graph.feedback.publish(Float32(data=float('nan')))
+    nan_stamped = Vector3Stamped()
+    nan_stamped.vector.x = float('inf')
+    graph.feedback_stamped.publish(nan_stamped)
+    for text in ('', 'x' * 100_000, 'Klettere die Leiter hinunter, bitte! \u00fc\u00df'):
+        graph.utterance.publish(String(data=text))
+    assert graph.wait_metrics(lambda v: v['drop/observation'] == 3 and v['drop/saliency'] == 1
+                              and v['feedback/invalid'] == 2 and v['utterance/count'] == 3)
+    assert node.alive()
+    graph.step(frame, 5 * STEP_NS)  # still acting
+    assert 'observation dropped' in node.log_text()
+    assert node.stop(signal.SIGINT) == 0
+    statuses = [e['status'] for e in feedback_lines(run_dir)]
+    assert statuses == ['invalid', 'invalid']
+
+
+def test_start_up_errors_say_what_to_do(start_node, tmp_path):
+    missing = start_node('tamer_node', {'run_dir': str(tmp_path / 'a'),
+                                        'encoder_path': str(tmp_path / 'nope.pt')},
+                         name='tamer_missing')
+    wrong = start_node('tamer_node', {'run_dir': str(tmp_path / 'b'), 'credit': 'sometimes'},
+                       name='tamer_wrong')
+    assert missing.process.wait(timeout=60) == 1
+    assert 'tamer_pretrain' in missing.log_text()
+    assert wrong.process.wait(timeout=60) == 1
+    assert 'credit' in wrong.log_text()
