@@ -1,3 +1,5 @@
+from glob import glob
+
 from setuptools import find_packages, setup
 
 package_name = 'attention_bringup'
@@ -6,18 +8,28 @@ setup(
     name=package_name,
     version='0.1.0',
     packages=find_packages(exclude=['test']),
+    # The YAML files travel with the Python package (the launcher finds them next to its code)
+    # and are also installed to share/ for ros2 launch.
+    package_data={package_name: ['config/*.yaml', 'config/conditions/*.yaml']},
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
+        ('share/' + package_name + '/launch', glob('launch/*.launch.py')),
+        ('share/' + package_name + '/config', glob(package_name + '/config/*.yaml')),
+        ('share/' + package_name + '/config/conditions',
+         glob(package_name + '/config/conditions/*.yaml')),
     ],
     install_requires=['setuptools'],
     zip_safe=True,
     maintainer='Language-attention TAMER maintainers',
     maintainer_email='maintainers@example.org',
-    description='Launcher, parameter files, launch file and study runner for the language-attention TAMER graph.',
+    description=('Launcher, parameter files, launch file and study runner for the '
+                 'language-attention TAMER graph.'),
     license='Apache-2.0',
     entry_points={
         'console_scripts': [
+            'attention_train = attention_bringup.launcher:main',
+            'attention_study = attention_bringup.study.cli:main',
         ],
     },
 )

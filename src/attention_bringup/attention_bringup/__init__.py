@@ -1,1 +1,1 @@
-"""Launcher, parameter files, launch file and study runner for the language-attention TAMER graph."""
+"""Launcher, parameter files, launch file and benchmarks of the language-attention TAMER graph."""

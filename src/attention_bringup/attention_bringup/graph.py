@@ -1,0 +1,39 @@
+"""
+What the graph is made of: the four node executables, the parameter files, the conditions.
+
+The launch file (``launch/attention.launch.py``) names the same executables and files; a test
+checks that both stay in step.
+"""
+
+from pathlib import Path
+from typing import List
+
+# Node names equal executable names (and package names); also the top-level keys of the YAML.
+NODES = ('env_node', 'feedback_node', 'saliency_node', 'tamer_node')
+
+CONFIG_DIR = Path(__file__).resolve().parent / 'config'
+GRAPH_FILE = 'graph.yaml'
+CONDITIONS_DIR = 'conditions'
+
+# The study conditions (issue 7 and the thesis, chapter 5), one parameter file each.
+CONDITIONS = (
+    'vanilla', 'language', 'blind_obs', 'blind_saliency', 'language_every_step', 'hidden_agent',
+)
+DEFAULT_CONDITION = 'language'
+
+
+def graph_file(config_dir: Path = CONFIG_DIR) -> Path:
+    """Return the file with the defaults of every node."""
+    return config_dir / GRAPH_FILE
+
+
+def condition_file(condition: str, config_dir: Path = CONFIG_DIR) -> Path:
+    """Return the parameter file of a study condition; ``ValueError`` for an unknown name."""
+    if condition not in CONDITIONS:
+        raise ValueError(f'unknown condition {condition!r} (one of: {", ".join(CONDITIONS)})')
+    return config_dir / CONDITIONS_DIR / f'{condition}.yaml'
+
+
+def base_params_files(condition: str, config_dir: Path = CONFIG_DIR) -> List[Path]:
+    """Return the files every node gets, in order: the graph defaults, then the condition."""
+    return [graph_file(config_dir), condition_file(condition, config_dir)]

@@ -1,0 +1,427 @@
+"""
+``attention_train``: train the agent with the whole graph, in one command.
+
+Reserves a ROS domain of its own (localhost discovery), starts the four node executables from
+this Python's bin folder as separate processes, each with the same ``--params-file`` list
+(graph defaults, condition, the user's files, the launcher's overrides), watches the graph with
+its own node, shows a progress bar, stops every node cleanly (SIGINT, then SIGTERM / SIGKILL
+after a deadline) at the end of the budget or on Ctrl-C, and writes the run folder.
+
+Exit code: 0 when the budget was trained and every node exited with 0; 1 when a node died,
+the graph stalled or a node did not stop cleanly; 2 for bad options or files; 130 on Ctrl-C.
+"""
+
+import datetime
+import os
+from pathlib import Path
+import signal
+import sys
+import threading
+import time
+from typing import Optional
+
+from attention_bringup import report
+from attention_bringup.gallery import GalleryCollector
+from attention_bringup.graph import NODES
+from attention_bringup.params import ParamsFileError
+from attention_bringup.plan import build_plan, LaunchPlan, OVERRIDES_FILE, parse_options
+from attention_bringup.processes import (
+    cpu_seconds, exit_description, log_tail, NodeGroup, resident_memory_kb)
+from attention_bringup.progress import format_bar, percentile, ProgressTracker
+from attention_common.isolation import apply_to_this_process, isolated_environ, reserved_domain
+
+STARTUP_TIMEOUT_S = 300.0
+"""Longest wait for the first step (node start-up includes importing torch on a busy CPU)."""
+STALL_TIMEOUT_S = 120.0
+"""Longest wait between two steps once the graph runs."""
+ENV_MATCH_TIMEOUT_S = 60.0
+"""Longest wait for the launcher's monitor to match env_node's publishers."""
+STOP_TIMEOUT_S = 30.0
+"""SIGINT to exit: the tamer writes its final checkpoint in this time."""
+EXIT_INTERRUPTED = 130
+
+
+class Launcher:
+    """One run: start, watch, stop, report."""
+
+    def __init__(self, plan: LaunchPlan, domain_id: int, out=sys.stdout, err=sys.stderr):
+        self.plan = plan
+        self.domain_id = domain_id
+        self.out, self.err = out, err
+        self.interrupts = 0
+        self.started_wall = time.monotonic()
+        self.interactive = (not plan.options.quiet) and err.isatty()
+
+    # -- set-up ---------------------------------------------------------------------------
+    def _prepare_run_dir(self) -> None:
+        run_dir = self.plan.run_dir
+        if (run_dir / report.SUMMARY_FILE).exists():
+            raise FileExistsError(f'{run_dir} already holds a finished run; choose another '
+                                  '--run-dir')
+        (run_dir / 'logs').mkdir(parents=True, exist_ok=True)
+        (run_dir / OVERRIDES_FILE).write_text(self.plan.overrides_text())
+        report.write_params(run_dir / report.PARAMS_FILE, self.plan.effective,
+                            self.plan.options_dict(), 'from the parameter files, at start')
+
+    def _node_environ(self) -> dict:
+        env = isolated_environ(self.domain_id)
+        env.update({
+            'PYTHONUNBUFFERED': '1',
+            'RCUTILS_COLORIZED_OUTPUT': '0',
+            'RCUTILS_LOGGING_BUFFERED_STREAM': '1',
+            'ROS_LOG_DIR': str(self.plan.run_dir / 'logs' / 'ros'),
+        })
+        return env
+
+    def _on_signal(self, signum, frame) -> None:
+        self.interrupts += 1
+
+    # -- the run --------------------------------------------------------------------------
+    def run(self) -> int:
+        self._prepare_run_dir()
+        previous = {sig: signal.signal(sig, self._on_signal)
+                    for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)}
+        try:
+            return self._run()
+        finally:
+            for sig, handler in previous.items():
+                signal.signal(sig, handler)
+
+    def _run(self) -> int:
+        import rclpy
+        from rclpy.context import Context
+        from rclpy.executors import SingleThreadedExecutor
+        from rclpy.signals import SignalHandlerOptions
+
+        from attention_bringup.monitor import GraphMonitor
+        from feedback_node.critical_positions import critical_position_at
+
+        apply_to_this_process(self.domain_id)
+        context = Context()
+        rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)
+        tracker = ProgressTracker(position_of=critical_position_at)
+        gallery = GalleryCollector()
+        monitor = GraphMonitor(tracker, gallery, watch_plain=not self.plan.options.synthetic,
+                               context=context)
+        executor = SingleThreadedExecutor(context=context)
+        executor.add_node(monitor)
+        spinner = threading.Thread(target=self._spin, args=(executor,), daemon=True)
+        spinner.start()
+        writer = report.ProgressWriter(self.plan.run_dir / report.PROGRESS_FILE)
+        group = NodeGroup(self._node_environ())
+        self._say(f'Run folder {self.plan.run_dir} (ROS domain {self.domain_id}); '
+                  f'{self.plan.options.condition}, {self.plan.options.steps} steps')
+        try:
+            status, failed = self._start_nodes(group, monitor)
+            if status is None:
+                status, failed = self._watch(group, monitor, writer)
+            if status == 'completed':
+                self._drain(monitor)
+            rss = {node.name: resident_memory_kb(node.pid) for node in group.running()}
+            cpu = {node.name: cpu_seconds(node.pid) for node in group.running()}
+            cpu['attention_train'] = sum(os.times()[:2])
+            queried = {}
+            if self.interrupts < 2:
+                alive = [node.name for node in group.running()]
+                queried = monitor.query_parameters(alive)
+            self._clear_bar()
+            if status != 'node_failed':
+                self._say('Stopping the nodes (SIGINT)...')
+            exit_codes = group.stop(STOP_TIMEOUT_S, escalate=lambda: self.interrupts >= 2)
+            with monitor.lock:
+                writer.write_new(tracker.rows)
+        finally:
+            if group.running():  # only after an error in the launcher itself
+                group.stop(sigint_timeout=10.0)
+            writer.close()
+            executor.shutdown(timeout_sec=2.0)
+            monitor.destroy_node()
+            rclpy.try_shutdown(context=context)
+            spinner.join(timeout=5.0)
+        return self._finish(status, failed, group, monitor, exit_codes, rss, cpu, queried)
+
+    def _start_nodes(self, group: NodeGroup, monitor):
+        """
+        Start the nodes in an order that loses no step; return (status, node) on failure.
+
+        Lockstep: env_node first; the others once the monitor hears it (the env steps only when
+        the learner answers, and the monitor must be matched with the env's publishers by
+        then). Real time: the env steps on its timer from the start, so the other three go
+        first and env_node starts once they listen.
+        """
+        commands = {command.name: command for command in self.plan.commands}
+        env_command = commands.pop('env_node')
+        if self.plan.options.realtime:
+            for command in commands.values():
+                group.start(command)
+            self._write_pids(group)
+            failure = self._wait_for(group, monitor.learners_listen, STARTUP_TIMEOUT_S,
+                                     'feedback_node, saliency_node and tamer_node do not listen')
+            if failure:
+                return failure
+        group.start(env_command)
+        self._write_pids(group)
+        failure = self._wait_for(group, monitor.hears_env, ENV_MATCH_TIMEOUT_S,
+                                 'the launcher does not hear env_node')
+        if failure:
+            return failure
+        monitor.watch_images()
+        if not self.plan.options.realtime:
+            for command in commands.values():
+                group.start(command)
+            self._write_pids(group)
+        return None, None
+
+    def _wait_for(self, group: NodeGroup, ready, timeout_s: float, what: str):
+        """Wait until ``ready()``; return None, or (status, node) on a death or a timeout."""
+        deadline = time.monotonic() + timeout_s
+        while not ready():
+            if self.interrupts:
+                return 'interrupted', None
+            dead = group.first_exited()
+            if dead is not None:
+                self._report_dead(dead)
+                return 'node_failed', dead.name
+            if time.monotonic() > deadline:
+                self.err.write(f'attention_train: {what} after {timeout_s:.0f} s; node logs are '
+                               f'in {self.plan.run_dir / "logs"}\n')
+                return 'stalled', None
+            time.sleep(0.05)
+        return None
+
+    def _write_pids(self, group: NodeGroup) -> None:
+        report.write_json(self.plan.run_dir / report.PIDS_FILE,
+                          {'attention_train': os.getpid(), 'domain_id': self.domain_id,
+                           **group.pids()})
+
+    @staticmethod
+    def _spin(executor) -> None:
+        try:
+            executor.spin()
+        except Exception:  # the context shut down while spinning
+            pass
+
+    def _watch(self, group: NodeGroup, monitor, writer):
+        """Wait for the end of the budget, a dead node, a stall or Ctrl-C."""
+        budget = self.plan.options.steps
+        last_steps, last_change = -1, time.monotonic()
+        last_line = 0.0
+        while True:
+            if self.interrupts:
+                return 'interrupted', None
+            dead = group.first_exited()
+            if dead is not None:
+                self._report_dead(dead)
+                return 'node_failed', dead.name
+            with monitor.lock:
+                tracker = monitor.tracker
+                writer.write_new(tracker.rows)
+                steps, rate, finished = tracker.steps, tracker.rate(), tracker.finished
+                monitor.gallery.on_schedule(steps, budget)
+                bar = format_bar(steps, budget, rate, tracker.counters.feedback,
+                                 tracker.furthest, tracker.latest.get('episode'),
+                                 tracker.latest.get('lives'))
+                started = bool(tracker.rows)
+            monitor.follow_gallery()
+            now = time.monotonic()
+            if finished:
+                self._show(bar)
+                return 'completed', None
+            if steps != last_steps:
+                last_steps, last_change = steps, now
+            limit = STALL_TIMEOUT_S if started else STARTUP_TIMEOUT_S
+            if now - last_change > limit:
+                self._report_stall(monitor, started, limit)
+                return 'stalled', None
+            if self.interactive or now - last_line >= 15.0:
+                self._show(bar)
+                last_line = now
+            time.sleep(0.2)
+
+    def _drain(self, monitor, quiet_s: float = 0.5, timeout_s: float = 3.0) -> None:
+        """After the last step, let the last feedback and metrics reach the tamer and us."""
+        end = time.monotonic() + timeout_s
+        previous, since = None, time.monotonic()
+        while time.monotonic() < end and not self.interrupts:
+            with monitor.lock:
+                current = dict(monitor.counts)
+            if current != previous:
+                previous, since = current, time.monotonic()
+            elif time.monotonic() - since >= quiet_s:
+                return
+            time.sleep(0.05)
+
+    # -- terminal -------------------------------------------------------------------------
+    def _show(self, bar: str) -> None:
+        if self.plan.options.quiet:
+            return
+        self.err.write('\r' + bar[:200] + '\033[K' if self.interactive else bar + '\n')
+        self.err.flush()
+
+    def _clear_bar(self) -> None:
+        if self.interactive:
+            self.err.write('\n')
+            self.err.flush()
+
+    def _say(self, text: str) -> None:
+        if not self.plan.options.quiet:
+            self._clear_bar()
+            self.err.write(text + '\n')
+            self.err.flush()
+
+    def _report_dead(self, node) -> None:
+        self._clear_bar()
+        tail = log_tail(node.command.log_path)
+        indented = '\n'.join('    ' + line for line in tail.splitlines()) or '    (empty log)'
+        self.err.write(f'attention_train: {node.name} died ({exit_description(node.poll())}); '
+                       f'the last lines of {node.command.log_path}:\n{indented}\n'
+                       'attention_train: stopping the other nodes.\n')
+        self.err.flush()
+
+    def _report_stall(self, monitor, started: bool, limit: float) -> None:
+        self._clear_bar()
+        with monitor.lock:
+            silent = [topic for topic, count in monitor.counts.items() if count == 0]
+        what = 'no new step' if started else 'no first step'
+        self.err.write(f'attention_train: {what} for {limit:.0f} s; topics never heard: '
+                       f'{", ".join(silent) or "none"}. Node logs are in '
+                       f'{self.plan.run_dir / "logs"}. Stopping.\n')
+        self.err.flush()
+
+    # -- the run folder -------------------------------------------------------------------
+    def _finish(self, status, failed, group, monitor, exit_codes, rss, cpu, queried) -> int:
+        run_dir = self.plan.run_dir
+        tracker = monitor.tracker
+        rows = tracker.rows
+        unclean = {name: code for name, code in exit_codes.items() if code != 0}
+        if status == 'completed' and unclean:
+            status = 'unclean_exit'
+        exit_text = self._exit_text(status, failed, exit_codes, group)
+        node_params = {name: (queried.get(name) if queried.get(name) is not None
+                              else self.plan.effective[name]) for name in NODES}
+        source = ('queried from the running nodes at the end of the run'
+                  if queried and all(queried.get(n) is not None for n in NODES)
+                  else 'queried from the nodes that answered; the others from the files')
+        report.write_params(run_dir / report.PARAMS_FILE, node_params,
+                            self.plan.options_dict(), source)
+        summary = self._summary(status, failed, exit_codes, exit_text, group, monitor, rss,
+                                queried)
+        summary['cpu_s'] = {name: None if value is None else round(value, 2)
+                            for name, value in cpu.items()}
+        title = (f'{self.plan.options.condition}, seed {self.plan.seed}, '
+                 f'{summary["steps"]} steps')
+        summary['files']['learning_curve'] = report.plot_learning_curve(
+            rows, run_dir / report.LEARNING_CURVE_FILE, title)
+        summary['files']['saliency_gallery'] = report.plot_gallery(
+            monitor.gallery.samples, run_dir / report.GALLERY_FILE, title,
+            step_of=tracker.step_at_stamp)
+        report.write_json(run_dir / report.SUMMARY_FILE, summary)
+        self.out.write(f'Run folder: {run_dir}\n')
+        for line in report.summary_lines(summary):
+            self.out.write(f'  {line}\n')
+        self.out.flush()
+        if status == 'completed':
+            return 0
+        return EXIT_INTERRUPTED if status == 'interrupted' else 1
+
+    def _exit_text(self, status, failed, exit_codes, group) -> str:
+        parts = []
+        for node in group.nodes:
+            code = exit_codes.get(node.name)
+            text = f'{node.name} {exit_description(code)}'
+            if node.name == failed:
+                text += ' (died during the run)'
+            elif len(node.stopped_with) > 1:
+                text += f' (needed {node.stopped_with[-1]})'
+            parts.append(text)
+        if status == 'completed':
+            return 'all 4 nodes exited cleanly'
+        return '; '.join(parts)
+
+    def _summary(self, status, failed, exit_codes, exit_text, group, monitor, rss, queried):
+        tracker = monitor.tracker
+        rows = tracker.rows
+        with monitor.lock:
+            counts = dict(monitor.counts)
+            first_seen = {topic: round(t, 2) for topic, t in monitor.first_message_wall.items()}
+            latencies = list(monitor.latencies_s)
+            metrics = dict(monitor.metrics)
+        training_s = rows[-1]['wall_time_s'] - rows[0]['wall_time_s'] if len(rows) > 1 else 0.0
+        steps = tracker.steps
+        first_steps = rows[0]['agent_step'] if rows else 0
+        feedback = tracker.counters.feedback
+
+        def ms(q):
+            value = percentile(latencies, q)
+            return None if value is None else round(value * 1000.0, 3)
+
+        run_dir = self.plan.run_dir
+        return {
+            'status': status,
+            'exit_text': exit_text,
+            'failed_node': failed,
+            'condition': self.plan.options.condition,
+            'seed': self.plan.seed,
+            'budget': self.plan.options.steps,
+            'steps': steps,
+            'wall_time_s': round(time.monotonic() - self.started_wall, 2),
+            'startup_s': rows[0]['wall_time_s'] if rows else None,
+            'training_time_s': round(training_s, 2),
+            'steps_per_s': round((steps - first_steps) / training_s, 2) if training_s else 0.0,
+            'episodes': len(tracker.episodes),
+            'lives_lost': tracker.lives_lost,
+            'keys': tracker.keys,
+            'furthest_position': tracker.furthest,
+            'first_step_at_position': {str(k): v for k, v in
+                                       sorted(tracker.first_step_at.items())},
+            'feedback_count': feedback,
+            'feedback_mean': round(tracker.counters.feedback_sum / feedback, 4) if feedback
+            else 0.0,
+            'utterance_count': tracker.counters.utterances,
+            'message_counts': counts,
+            'first_message_s': first_seen,
+            'latency_ms': {'p50': ms(50), 'p99': ms(99), 'max': ms(100),
+                           'n': len(latencies)},
+            'metrics': metrics,
+            'rss_kb': rss,
+            'exit_codes': exit_codes,
+            'signals_sent': {node.name: node.stopped_with for node in group.nodes},
+            'pids': group.pids(),
+            'domain_id': self.domain_id,
+            'parameters_queried': sorted(name for name, v in queried.items() if v is not None),
+            'options': self.plan.options_dict(),
+            'params_files': [str(path) for path in self.plan.params_files],
+            'finished_at': datetime.datetime.now().isoformat(timespec='seconds'),
+            'files': {
+                'params': report.PARAMS_FILE,
+                'progress': report.PROGRESS_FILE,
+                'metrics': 'metrics.csv' if (run_dir / 'metrics.csv').exists() else None,
+                'checkpoints': 'checkpoints' if (run_dir / 'checkpoints').is_dir() else None,
+                'logs': 'logs',
+            },
+        }
+
+
+def main(argv: Optional[list] = None) -> int:
+    options = parse_options(argv)
+    try:
+        plan = build_plan(options, Path(sys.executable).parent, Path.cwd())
+    except (ParamsFileError, ValueError) as error:
+        sys.stderr.write(f'attention_train: {error}\n')
+        return 2
+    missing = [command.argv[0] for command in plan.commands
+               if not os.access(command.argv[0], os.X_OK)]
+    if missing:
+        sys.stderr.write(f'attention_train: node executables not found: {", ".join(missing)} '
+                         '(run make setup)\n')
+        return 2
+    with reserved_domain() as domain_id:
+        try:
+            return Launcher(plan, domain_id).run()
+        except FileExistsError as error:
+            sys.stderr.write(f'attention_train: {error}\n')
+            return 2
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,249 @@
+"""
+The launcher's own node: watches the graph's topics and asks the nodes for their parameters.
+
+Callbacks only update counters, the progress tracker and the gallery collector under one lock;
+the launcher's main thread reads them. Watching must not slow the graph (each message costs the
+launcher's executor a few hundred microseconds): images are subscribed raw and best-effort (a
+lost image only costs a count), ``saliency_mask`` only while the gallery takes a sample, and the
+plain ``feedback`` / ``utterance`` only when a person trains (the synthetic trainer's stamped
+companions carry the same).
+"""
+
+import threading
+import time
+from typing import Dict, List, Optional
+
+from attention_bringup.gallery import (
+    cdr_header_stamp_ns, GalleryCollector, MASK, OBSERVATION, SALIENCY)
+from attention_bringup.progress import parse_key_values, ProgressTracker
+from attention_common import qos, topics
+from attention_common.stamps import stamp_to_ns
+from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import PointStamped, Vector3Stamped
+from rcl_interfaces.srv import GetParameters, ListParameters
+from rclpy.node import Node
+from rclpy.parameter import parameter_value_to_python
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import Image, Joy
+from std_msgs.msg import Float32, String
+
+WATCH_IMAGES = QoSProfile(depth=10, reliability=ReliabilityPolicy.BEST_EFFORT)
+WATCH_STEPS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE,
+                         durability=DurabilityPolicy.VOLATILE)
+"""Reliable like the publishers, with a deep queue: a busy launcher falls behind, loses nothing."""
+
+COUNTED_TOPICS = (
+    topics.OBSERVATION, topics.ACTION, topics.AGENT_POSITION, topics.ENV_STATUS,
+    topics.UTTERANCE, topics.UTTERANCE_STAMPED, topics.FEEDBACK, topics.FEEDBACK_STAMPED,
+    topics.SALIENCY, topics.SALIENCY_MASK, topics.METRICS,
+)
+PLAIN_TOPICS = (topics.FEEDBACK, topics.UTTERANCE)
+
+
+def key_values(msg: DiagnosticArray) -> Dict[str, object]:
+    pairs = [(kv.key, kv.value) for status in msg.status for kv in status.values]
+    return parse_key_values(pairs)
+
+
+class GraphMonitor(Node):
+    """Subscribes to every topic of the graph; keeps what the launcher shows and writes."""
+
+    def __init__(self, tracker: ProgressTracker, gallery: GalleryCollector,
+                 watch_plain: bool = True, **kwargs):
+        super().__init__('attention_train', **kwargs)
+        self.lock = threading.Lock()
+        self.tracker = tracker
+        self.gallery = gallery
+        self.counts = dict.fromkeys(
+            (t for t in COUNTED_TOPICS if watch_plain or t not in PLAIN_TOPICS), 0)
+        self.first_message_wall: Dict[str, float] = {}
+        self.metrics: Dict[str, object] = {}
+        self.latencies_s: List[float] = []
+        self._observed_at: Dict[int, float] = {}
+        self._answered = set()
+        self._started = time.monotonic()
+        sub = self.create_subscription
+        self._env_subscriptions = (
+            sub(DiagnosticArray, topics.ENV_STATUS, self._on_env_status, WATCH_STEPS),
+            sub(PointStamped, topics.AGENT_POSITION, self._on_position, WATCH_STEPS),
+        )
+        sub(Vector3Stamped, topics.FEEDBACK_STAMPED, self._on_feedback_stamped, WATCH_STEPS)
+        sub(DiagnosticArray, topics.UTTERANCE_STAMPED, self._on_utterance_stamped, WATCH_STEPS)
+        if watch_plain:
+            sub(Float32, topics.FEEDBACK, self._on_feedback, WATCH_STEPS)
+            sub(String, topics.UTTERANCE, self._on_utterance, WATCH_STEPS)
+        sub(DiagnosticArray, topics.METRICS, self._on_metrics, qos.METRICS)
+        sub(Joy, topics.ACTION, self._on_action, WATCH_STEPS)
+        self._watching_images = False
+        self._mask_subscription = None
+
+    def watch_images(self) -> None:
+        """
+        Subscribe to the images (call once env_node is heard).
+
+        env_node publishes its first step as soon as anyone subscribes to ``observation``; the
+        launcher subscribes only after it is matched with the step data, so it sees step one.
+        """
+        if self._watching_images:
+            return
+        self._watching_images = True
+        for topic, kind in ((topics.OBSERVATION, OBSERVATION), (topics.SALIENCY, SALIENCY)):
+            self.create_subscription(Image, topic, self._image_callback(topic, kind),
+                                     WATCH_IMAGES, raw=True)
+
+    def follow_gallery(self) -> None:
+        """
+        Subscribe to ``saliency_mask`` while the gallery waits for a sample, not otherwise.
+
+        (saliency_node renders masks only while someone subscribes.) Call from the main thread.
+        """
+        with self.lock:
+            waiting = self.gallery.waiting and not self.gallery.full
+        if waiting and self._watching_images and self._mask_subscription is None:
+            self._mask_subscription = self.create_subscription(
+                Image, topics.SALIENCY_MASK, self._image_callback(topics.SALIENCY_MASK, MASK),
+                WATCH_IMAGES, raw=True)
+        elif not waiting and self._mask_subscription is not None:
+            self.destroy_subscription(self._mask_subscription)
+            self._mask_subscription = None
+
+    def learners_listen(self) -> bool:
+        """Return whether saliency and tamer take observations and feedback takes positions."""
+        return (self.count_subscribers(topics.OBSERVATION) >= 2
+                and self.count_subscribers(topics.AGENT_POSITION) >= 2)  # feedback_node and us
+
+    def hears_env(self) -> bool:
+        """Return whether env_node's step publishers are matched (so no step goes unseen)."""
+        return all(s.get_publisher_count() > 0 for s in self._env_subscriptions)
+
+    def elapsed(self) -> float:
+        return time.monotonic() - self._started
+
+    def _count(self, topic: str) -> None:
+        self.counts[topic] += 1
+        self.first_message_wall.setdefault(topic, self.elapsed())
+
+    def _on_env_status(self, msg: DiagnosticArray) -> None:
+        values = key_values(msg)
+        with self.lock:
+            self._count(topics.ENV_STATUS)
+            self.tracker.on_status(stamp_to_ns(msg.header.stamp), values, self.elapsed())
+
+    def _on_position(self, msg: PointStamped) -> None:
+        with self.lock:
+            self._count(topics.AGENT_POSITION)
+            self.tracker.on_position(stamp_to_ns(msg.header.stamp), float(msg.point.x),
+                                     float(msg.point.y), int(round(msg.point.z)))
+
+    def _on_feedback_stamped(self, msg: Vector3Stamped) -> None:
+        with self.lock:
+            self._count(topics.FEEDBACK_STAMPED)
+            self.tracker.counters.feedback += 1
+            self.tracker.counters.feedback_sum += float(msg.vector.x)
+
+    def _on_feedback(self, msg: Float32) -> None:
+        with self.lock:
+            self._count(topics.FEEDBACK)
+            if self.counts[topics.FEEDBACK_STAMPED] == 0:  # no stamped companion: a person
+                self.tracker.counters.feedback += 1
+                self.tracker.counters.feedback_sum += float(msg.data)
+
+    def _on_utterance_stamped(self, msg: DiagnosticArray) -> None:
+        stamp = stamp_to_ns(msg.header.stamp)
+        with self.lock:
+            self._count(topics.UTTERANCE_STAMPED)
+            for status in msg.status:
+                self.tracker.counters.utterances += 1
+                self.gallery.on_utterance(stamp, status.message)
+
+    def _on_utterance(self, msg: String) -> None:
+        with self.lock:
+            self._count(topics.UTTERANCE)
+            if self.counts[topics.UTTERANCE_STAMPED] == 0:  # a person: stamp it with "now"
+                self.tracker.counters.utterances += 1
+                rows = self.tracker.rows
+                now = int(rows[-1]['sim_time_s'] * 1e9) if rows else 0
+                self.gallery.on_utterance(now, msg.data)
+
+    def _on_metrics(self, msg: DiagnosticArray) -> None:
+        values = key_values(msg)
+        with self.lock:
+            self._count(topics.METRICS)
+            self.metrics.update(values)
+
+    def _on_action(self, msg: Joy) -> None:
+        now = time.monotonic()
+        stamp = stamp_to_ns(msg.header.stamp)
+        with self.lock:
+            self._count(topics.ACTION)
+            observed = self._observed_at.get(stamp)
+            if observed is not None and stamp not in self._answered:
+                self._answered.add(stamp)
+                self.latencies_s.append(now - observed)
+
+    def _image_callback(self, topic: str, kind: str):
+        def callback(raw: bytes) -> None:
+            now = time.monotonic()
+            try:
+                stamp = cdr_header_stamp_ns(raw)
+            except ValueError as error:
+                self.get_logger().warning(f'{topic}: {error}')
+                return
+            with self.lock:
+                self._count(topic)
+                if kind == SALIENCY:
+                    self.tracker.counters.saliency += 1
+                if kind == OBSERVATION:
+                    self._observed_at[stamp] = now
+                    if len(self._observed_at) > 256:
+                        oldest = min(self._observed_at)
+                        del self._observed_at[oldest]
+                        self._answered.discard(oldest)
+                self.gallery.on_image(kind, stamp, raw)
+        return callback
+
+    def query_parameters(self, node_names, timeout_s: float = 10.0) -> Dict[str, Optional[dict]]:
+        """
+        Ask every node for all its parameters, all at once; None for a node that does not answer.
+
+        Call from a thread other than the one spinning this node.
+        """
+        deadline = time.monotonic() + timeout_s
+        clients = {name: (self.create_client(ListParameters, f'/{name}/list_parameters'),
+                          self.create_client(GetParameters, f'/{name}/get_parameters'))
+                   for name in node_names}
+        result: Dict[str, Optional[dict]] = dict.fromkeys(node_names)
+        try:
+            listing = {}
+            for name, (lister, getter) in clients.items():
+                ready = (lister.wait_for_service(timeout_sec=self._left(deadline))
+                         and getter.wait_for_service(timeout_sec=self._left(deadline)))
+                if ready:
+                    listing[name] = lister.call_async(ListParameters.Request())
+            getting = {}
+            for name, future in listing.items():
+                listed = self._wait(future, deadline)
+                if listed is not None:
+                    names = sorted(listed.result.names)
+                    getting[name] = (names, clients[name][1].call_async(
+                        GetParameters.Request(names=names)))
+            for name, (names, future) in getting.items():
+                got = self._wait(future, deadline)
+                if got is not None:
+                    result[name] = {n: parameter_value_to_python(v)
+                                    for n, v in zip(names, got.values)}
+        finally:
+            for lister, getter in clients.values():
+                self.destroy_client(lister)
+                self.destroy_client(getter)
+        return result
+
+    @staticmethod
+    def _left(deadline: float) -> float:
+        return max(0.0, deadline - time.monotonic())
+
+    @staticmethod
+    def _wait(future, deadline: float):
+        while not future.done() and time.monotonic() < deadline:
+            time.sleep(0.01)
+        return future.result() if future.done() else None

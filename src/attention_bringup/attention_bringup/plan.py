@@ -1,0 +1,173 @@
+"""
+From the launcher's options to the four command lines and the parameters each node gets.
+
+Pure (no rclpy, no processes): ``parse_options`` reads the command line, ``build_plan`` decides
+the run folder, the parameter files in order (graph defaults, condition, the user's files, the
+launcher's own overrides last) and the effective parameters of every node.
+"""
+
+import argparse
+from dataclasses import asdict, dataclass, field
+import datetime
+from pathlib import Path
+from typing import Dict, List, Optional, Sequence
+
+from attention_bringup.graph import (
+    base_params_files, CONDITIONS, DEFAULT_CONDITION, NODES)
+from attention_bringup.params import (
+    dump_params, GraphParams, load_params_file, merge_params, node_params, NodeParams)
+
+DEFAULT_STEPS = 10000
+"""Agent steps of a default run (the thesis's trial): about 4 minutes on 2 busy CPU cores."""
+
+REALTIME_RATE_HZ = 15.0
+"""env_node ``rate_hz`` for ``--realtime``: with frameskip 4, exactly the Atari's 60 Hz."""
+
+OVERRIDES_FILE = 'launcher_overrides.yaml'
+
+WAIT_PARAMETERS = ('wait_observation_subscribers', 'wait_position_subscribers')
+"""env_node waits in lockstep until this many subscribers listen before its first step."""
+
+
+@dataclass
+class LaunchOptions:
+    """What the user asked for on the command line."""
+
+    steps: int = DEFAULT_STEPS
+    """Budget of agent steps (env_node ``max_steps``)."""
+    condition: str = DEFAULT_CONDITION
+    """Study condition, by its name in ``graph.CONDITIONS``."""
+    seed: Optional[int] = None
+    """Seed of every node that has one (None: what the parameter files say)."""
+    realtime: bool = False
+    """Step at 15 Hz (real time) instead of lockstep."""
+    synthetic: bool = True
+    """Run the synthetic trainer (False: a person gives feedback with ``ros2 topic pub``)."""
+    params_files: List[str] = field(default_factory=list)
+    """The user's parameter files, applied in order on top of the condition."""
+    run_dir: Optional[str] = None
+    """Run folder (None: ``runs/<timestamp>-<condition>-seed<n>`` under the working directory)."""
+    quiet: bool = False
+    """No progress bar, only the final summary."""
+
+
+def _positive_int(text: str) -> int:
+    value = int(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError(f'must be at least 1, got {value}')
+    return value
+
+
+def argument_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog='attention_train',
+        description="Train the Deep TAMER agent on Montezuma's Revenge (Room 1): start the four "
+                    'nodes, show progress, stop them at the end of the budget and write a run '
+                    'folder.')
+    parser.add_argument('--steps', type=_positive_int, default=DEFAULT_STEPS,
+                        help=f'budget of agent steps (default {DEFAULT_STEPS})')
+    parser.add_argument('--condition', choices=CONDITIONS, default=DEFAULT_CONDITION,
+                        help=f'study condition (default {DEFAULT_CONDITION})')
+    parser.add_argument('--seed', type=int, default=None,
+                        help='seed of every node (default: the parameter files, 0)')
+    parser.add_argument('--realtime', action='store_true',
+                        help=f'step at {REALTIME_RATE_HZ:g} Hz (real time) instead of lockstep')
+    parser.add_argument('--no-synthetic', dest='synthetic', action='store_false',
+                        help='no synthetic trainer: a person gives feedback with ros2 topic pub '
+                             '(the tamer then credits it with the Deep TAMER window)')
+    parser.add_argument('--params-file', dest='params_files', action='append', default=[],
+                        metavar='YAML',
+                        help='ROS 2 parameter file applied on top of the condition (repeatable, '
+                             'later wins)')
+    parser.add_argument('--run-dir', default=None,
+                        help='run folder (default runs/<timestamp>-<condition>-seed<n>)')
+    parser.add_argument('--quiet', action='store_true', help='no progress bar')
+    return parser
+
+
+def parse_options(argv: Optional[Sequence[str]] = None) -> LaunchOptions:
+    return LaunchOptions(**vars(argument_parser().parse_args(argv)))
+
+
+@dataclass
+class NodeCommand:
+    """One node process to start."""
+
+    name: str
+    argv: List[str]
+    log_path: Path
+
+
+@dataclass
+class LaunchPlan:
+    """Everything the launcher starts and writes, decided before anything runs."""
+
+    options: LaunchOptions
+    run_dir: Path
+    seed: int
+    params_files: List[Path]
+    """Files every node gets, in order, the launcher's overrides file last."""
+    overrides: GraphParams
+    """What the launcher itself sets (budget, run folder, seed, clock, trainer)."""
+    effective: Dict[str, NodeParams]
+    """Per node: the merged parameters of all files (what the files set, not the defaults)."""
+    commands: List[NodeCommand]
+
+    def overrides_text(self) -> str:
+        return dump_params(self.overrides, header='Set by attention_train from its options.')
+
+    def options_dict(self) -> dict:
+        return asdict(self.options)
+
+
+def launcher_overrides(options: LaunchOptions, seed: int, run_dir: Path,
+                       files_params: GraphParams) -> GraphParams:
+    """Return the parameters the launcher's options fix, one section per node."""
+    overrides: GraphParams = {node: {} for node in NODES}
+    overrides['env_node']['max_steps'] = int(options.steps)
+    env = node_params(files_params, 'env_node')
+    for name in WAIT_PARAMETERS:  # the launcher's own node listens too
+        if name in env:
+            overrides['env_node'][name] = int(env[name]) + 1
+    overrides['tamer_node']['run_dir'] = str(run_dir)
+    if options.seed is not None:
+        for node in NODES:
+            if node == 'env_node' or 'seed' in node_params(files_params, node):
+                overrides[node]['seed'] = int(seed)
+    if options.realtime:
+        overrides['env_node']['rate_hz'] = REALTIME_RATE_HZ
+    if not options.synthetic:
+        overrides['feedback_node']['synthetic'] = False
+        overrides['tamer_node']['credit'] = 'window'  # a person's feedback comes late
+    return {node: values for node, values in overrides.items() if values}
+
+
+def default_run_dir(cwd: Path, condition: str, seed: int, now: datetime.datetime) -> Path:
+    return cwd / 'runs' / f'{now:%Y%m%d-%H%M%S}-{condition}-seed{seed}'
+
+
+def build_plan(options: LaunchOptions, bin_dir: Path, cwd: Path,
+               now: Optional[datetime.datetime] = None) -> LaunchPlan:
+    """Decide the run; raise ``ParamsFileError`` / ``ValueError`` for bad files or names."""
+    files = base_params_files(options.condition)
+    files += [(cwd / path).resolve() for path in options.params_files]
+    files_params = merge_params(load_params_file(path) for path in files)
+    seed = options.seed
+    if seed is None:
+        seed = int(node_params(files_params, 'env_node').get('seed', 0))
+    if options.run_dir is not None:
+        run_dir = (cwd / options.run_dir).resolve()
+    else:
+        run_dir = default_run_dir(cwd, options.condition, seed, now or datetime.datetime.now())
+    overrides = launcher_overrides(options, seed, run_dir, files_params)
+    merged = merge_params([files_params, overrides])
+    effective = {node: node_params(merged, node) for node in NODES}
+    all_files = files + [run_dir / OVERRIDES_FILE]
+    commands = []
+    for node in NODES:
+        argv = [str(bin_dir / node), '--ros-args']
+        for path in all_files:
+            argv += ['--params-file', str(path)]
+        commands.append(NodeCommand(node, argv, run_dir / 'logs' / f'{node}.log'))
+    return LaunchPlan(options=options, run_dir=run_dir, seed=seed, params_files=all_files,
+                      overrides=overrides, effective=effective, commands=commands)

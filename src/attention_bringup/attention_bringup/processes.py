@@ -1,0 +1,174 @@
+"""
+The node processes of one run: start them, watch them, stop them in escalating steps.
+
+Each node runs in its own process group, so a Ctrl-C at the terminal reaches only the launcher,
+which then sends exactly one SIGINT to every node (a second SIGINT could interrupt the tamer's
+final checkpoint). On Linux every node also gets SIGTERM if the launcher dies: a small shim sets
+``PR_SET_PDEATHSIG`` and then ``exec``s the node (no ``preexec_fn``, which is unsafe once the
+launcher's own ROS threads run).
+"""
+
+from dataclasses import dataclass, field
+import os
+from pathlib import Path
+import signal
+import subprocess
+import sys
+import time
+from typing import Dict, List, Mapping, Optional
+
+from attention_bringup.plan import NodeCommand
+
+# argv: <launcher pid> <executable> <args...>. Exits if the launcher is already gone.
+_DIE_WITH_PARENT_SHIM = (
+    'import ctypes, os, signal, sys\n'
+    'ctypes.CDLL(None).prctl(1, int(signal.SIGTERM))  # PR_SET_PDEATHSIG\n'
+    'sys.exit(1) if os.getppid() != int(sys.argv[1]) else os.execv(sys.argv[2], sys.argv[2:])\n'
+)
+
+
+def dying_with_parent(argv: List[str]) -> List[str]:
+    """Return a command line that runs ``argv`` and gets SIGTERM when this process dies."""
+    if not sys.platform.startswith('linux'):
+        return list(argv)
+    return [sys.executable, '-I', '-c', _DIE_WITH_PARENT_SHIM, str(os.getpid())] + list(argv)
+
+
+def exit_description(code: Optional[int]) -> str:
+    if code is None:
+        return 'still running'
+    if code < 0:
+        try:
+            return f'killed by {signal.Signals(-code).name}'
+        except ValueError:
+            return f'killed by signal {-code}'
+    return f'exit code {code}'
+
+
+def log_tail(path: Path, lines: int = 20) -> str:
+    """Return the last ``lines`` lines of a log file ('' if there is none)."""
+    try:
+        with open(path, 'rb') as log:
+            log.seek(0, os.SEEK_END)
+            log.seek(max(0, log.tell() - 64 * 1024))
+            text = log.read().decode(errors='replace')
+    except OSError:
+        return ''
+    return '\n'.join(text.splitlines()[-lines:])
+
+
+def resident_memory_kb(pid: int) -> Dict[str, int]:
+    """Return the resident memory (VmRSS) and its peak (VmHWM) of a process, in kB."""
+    values = {}
+    try:
+        with open(f'/proc/{pid}/status') as status:
+            for line in status:
+                key, _, rest = line.partition(':')
+                if key in ('VmRSS', 'VmHWM'):
+                    values[key] = int(rest.split()[0])
+    except (OSError, ValueError, IndexError):
+        pass
+    return values
+
+
+def cpu_seconds(pid: int) -> Optional[float]:
+    """Return the CPU time (user + system) a process has used so far, from /proc."""
+    try:
+        with open(f'/proc/{pid}/stat') as stat:
+            fields = stat.read().rsplit(')', 1)[1].split()
+        return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
+    except (OSError, ValueError, IndexError):
+        return None
+
+
+@dataclass
+class NodeProcess:
+    """One running node."""
+
+    command: NodeCommand
+    process: subprocess.Popen
+    log_file: object
+    stopped_with: List[str] = field(default_factory=list)
+    """Signals the launcher sent, in order."""
+
+    @property
+    def name(self) -> str:
+        return self.command.name
+
+    @property
+    def pid(self) -> int:
+        return self.process.pid
+
+    def poll(self) -> Optional[int]:
+        return self.process.poll()
+
+    def signal(self, sig: signal.Signals) -> None:
+        if self.process.poll() is None:
+            self.stopped_with.append(sig.name)
+            try:
+                self.process.send_signal(sig)
+            except ProcessLookupError:
+                pass
+
+
+class NodeGroup:
+    """The node processes of a run, started one by one."""
+
+    def __init__(self, env: Mapping[str, str]):
+        self.env = dict(env)
+        self.nodes: List[NodeProcess] = []
+
+    def start(self, command: NodeCommand) -> NodeProcess:
+        command.log_path.parent.mkdir(parents=True, exist_ok=True)
+        log_file = open(command.log_path, 'wb')
+        process = subprocess.Popen(
+            dying_with_parent(command.argv), stdin=subprocess.DEVNULL, stdout=log_file,
+            stderr=subprocess.STDOUT, env=self.env, process_group=0)
+        node = NodeProcess(command, process, log_file)
+        self.nodes.append(node)
+        return node
+
+    def pids(self) -> Dict[str, int]:
+        return {node.name: node.pid for node in self.nodes}
+
+    def first_exited(self) -> Optional[NodeProcess]:
+        """Return a node that has exited (whatever its code), or None."""
+        for node in self.nodes:
+            if node.poll() is not None:
+                return node
+        return None
+
+    def running(self) -> List[NodeProcess]:
+        return [node for node in self.nodes if node.poll() is None]
+
+    def wait(self, deadline_s: float) -> bool:
+        """Wait until every node has exited or ``deadline_s`` passes; True if all exited."""
+        end = time.monotonic() + deadline_s
+        while self.running() and time.monotonic() < end:
+            time.sleep(0.05)
+        return not self.running()
+
+    def stop(self, sigint_timeout: float = 30.0, sigterm_timeout: float = 5.0,
+             escalate=lambda: False) -> Dict[str, Optional[int]]:
+        """
+        SIGINT every node, then SIGTERM and SIGKILL the ones still running after a deadline.
+
+        ``escalate()`` returning True (a second Ctrl-C) cuts the SIGINT wait short.
+        """
+        for node in self.running():
+            node.signal(signal.SIGINT)
+        end = time.monotonic() + sigint_timeout
+        while self.running() and time.monotonic() < end and not escalate():
+            time.sleep(0.05)
+        for sig, timeout in ((signal.SIGTERM, sigterm_timeout), (signal.SIGKILL, 5.0)):
+            if not self.running():
+                break
+            for node in self.running():
+                node.signal(sig)
+            self.wait(timeout)
+        for node in self.nodes:
+            node.log_file.close()
+        return self.exit_codes()
+
+    def exit_codes(self) -> Dict[str, Optional[int]]:
+        return {node.name: node.poll() for node in self.nodes}

@@ -1,0 +1,182 @@
+"""
+Training progress as the launcher sees it, from plain values (no rclpy).
+
+``ProgressTracker`` pairs each step's ``env_status`` with its ``agent_position`` by stamp and
+turns them into one row per agent step (for ``progress.csv`` and the learning curve), keeping
+the furthest critical position reached so far. ``format_bar`` draws the terminal line.
+"""
+
+from dataclasses import dataclass, field
+import math
+from typing import Callable, Dict, List, Mapping, Optional, Tuple
+
+PROGRESS_COLUMNS = (
+    'agent_step', 'sim_time_s', 'wall_time_s', 'episode', 'episode_step', 'lives', 'has_key',
+    'reward', 'episode_return', 'x', 'y', 'room', 'position', 'furthest_position',
+    'feedback_count', 'feedback_sum', 'utterance_count', 'saliency_count',
+)
+
+START_ROOM = 1  # RAM room number of Room 1; positions elsewhere are not Room 1's coordinates.
+
+
+def parse_value(text: str):
+    """Turn a diagnostic KeyValue string into a bool, int, float, or keep the string."""
+    lowered = text.strip().lower()
+    if lowered in ('true', 'false'):
+        return lowered == 'true'
+    for kind in (int, float):
+        try:
+            return kind(text)
+        except ValueError:
+            pass
+    return text
+
+
+def parse_key_values(pairs) -> Dict[str, object]:
+    """``[(key, value_string)]`` -> ``{key: value}`` with values parsed."""
+    return {str(key): parse_value(str(value)) for key, value in pairs}
+
+
+@dataclass
+class Counters:
+    """Messages the launcher has seen, per kind."""
+
+    feedback: int = 0
+    feedback_sum: float = 0.0
+    utterances: int = 0
+    saliency: int = 0
+
+
+@dataclass
+class ProgressTracker:
+    """One row per agent step, furthest critical position, first step at each position."""
+
+    position_of: Callable[[float, float], int]
+    """(x, y) in RAM coordinates -> critical position index, -1 in between."""
+    start_room: int = START_ROOM
+    counters: Counters = field(default_factory=Counters)
+    rows: List[dict] = field(default_factory=list)
+    furthest: int = -1
+    first_step_at: Dict[int, int] = field(default_factory=dict)
+    keys: int = 0
+    lives_lost: int = 0
+    episodes: set = field(default_factory=set)
+    step_at_stamp: Dict[int, int] = field(default_factory=dict)
+    latest: dict = field(default_factory=dict)
+    finished: bool = False
+    _statuses: Dict[int, Tuple[dict, float]] = field(default_factory=dict)
+    _positions: Dict[int, Tuple[float, float, int]] = field(default_factory=dict)
+    _had_key: bool = False
+    _last_stamp: int = -1
+
+    def on_status(self, stamp_ns: int, values: Mapping[str, object], wall_s: float) -> None:
+        if values.get('finished'):
+            self.finished = True
+        self._statuses[stamp_ns] = (dict(values), wall_s)
+        self._pair(stamp_ns)
+
+    def on_position(self, stamp_ns: int, x: float, y: float, room: int) -> None:
+        self._positions[stamp_ns] = (x, y, room)
+        self._pair(stamp_ns)
+
+    def _pair(self, stamp_ns: int) -> None:
+        if stamp_ns not in self._statuses or stamp_ns not in self._positions:
+            self._bound()
+            return
+        values, wall_s = self._statuses.pop(stamp_ns)
+        x, y, room = self._positions.pop(stamp_ns)
+        self._bound()
+        if stamp_ns <= self._last_stamp:  # a step published twice (after an action timeout)
+            return
+        self._last_stamp = stamp_ns
+        self._add_row(stamp_ns, values, wall_s, x, y, room)
+
+    def _bound(self, keep: int = 200) -> None:
+        """Unpaired halves (a lost message) must not pile up: keep the newest ``keep``."""
+        for store in (self._statuses, self._positions):
+            while len(store) > keep:
+                del store[min(store)]
+
+    def _add_row(self, stamp_ns, values, wall_s, x, y, room) -> None:
+        position = self.position_of(x, y) if int(room) == self.start_room else -1
+        step = int(values.get('agent_step', len(self.rows)))
+        if position > self.furthest:
+            self.furthest = position
+        if position >= 0 and position not in self.first_step_at:
+            self.first_step_at[position] = step
+        has_key = bool(values.get('has_key', False))
+        if has_key and not self._had_key:
+            self.keys += 1
+        self._had_key = has_key
+        if values.get('life_lost'):
+            self.lives_lost += 1
+        if 'episode' in values:
+            self.episodes.add(values['episode'])
+        self.step_at_stamp[stamp_ns] = step
+        row = {
+            'agent_step': step,
+            'sim_time_s': stamp_ns / 1e9,
+            'wall_time_s': round(wall_s, 4),
+            'episode': values.get('episode', ''),
+            'episode_step': values.get('episode_step', ''),
+            'lives': values.get('lives', ''),
+            'has_key': int(has_key),
+            'reward': values.get('reward', ''),
+            'episode_return': values.get('episode_return', ''),
+            'x': x, 'y': y, 'room': room,
+            'position': position,
+            'furthest_position': self.furthest,
+            'feedback_count': self.counters.feedback,
+            'feedback_sum': round(self.counters.feedback_sum, 4),
+            'utterance_count': self.counters.utterances,
+            'saliency_count': self.counters.saliency,
+        }
+        self.rows.append(row)
+        self.latest = dict(values)
+
+    @property
+    def steps(self) -> int:
+        return int(self.rows[-1]['agent_step']) if self.rows else 0
+
+    def rate(self, window: int = 200) -> float:
+        """Agent steps per wall second over the last ``window`` rows."""
+        if len(self.rows) < 2:
+            return 0.0
+        first = self.rows[max(0, len(self.rows) - window)]
+        last = self.rows[-1]
+        elapsed = last['wall_time_s'] - first['wall_time_s']
+        steps = last['agent_step'] - first['agent_step']
+        return steps / elapsed if elapsed > 0 else 0.0
+
+
+def percentile(values, q: float) -> Optional[float]:
+    """Return the nearest-rank q-th percentile, q in 0..100, of values; None if empty."""
+    ordered = sorted(values)
+    if not ordered:
+        return None
+    rank = max(1, math.ceil(q / 100.0 * len(ordered)))
+    return ordered[min(rank, len(ordered)) - 1]
+
+
+def format_duration(seconds: float) -> str:
+    seconds = max(0, int(round(seconds)))
+    hours, rest = divmod(seconds, 3600)
+    minutes, seconds = divmod(rest, 60)
+    return f'{hours}:{minutes:02d}:{seconds:02d}' if hours else f'{minutes}:{seconds:02d}'
+
+
+def format_bar(steps: int, budget: int, rate: float, feedback: int, furthest: int,
+               episode=None, lives=None, width: int = 24) -> str:
+    """One terminal line: bar, steps, steps/s, ETA, feedback count, furthest position."""
+    fraction = min(1.0, steps / budget) if budget > 0 else 0.0
+    filled = int(round(fraction * width))
+    eta = format_duration((budget - steps) / rate) if rate > 0 and steps < budget else '--:--'
+    furthest_text = str(furthest) if furthest >= 0 else '-'
+    extra = ''
+    if episode is not None:
+        extra += f' | episode {episode}'
+    if lives is not None:
+        extra += f' lives {lives}'
+    return (f'[{"#" * filled}{"." * (width - filled)}] {steps}/{budget} steps '
+            f'| {rate:5.1f} steps/s | ETA {eta} | feedback {feedback} '
+            f'| furthest position {furthest_text}{extra}')

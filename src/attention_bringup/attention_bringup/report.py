@@ -1,0 +1,162 @@
+"""What a run leaves in its folder: progress.csv, summary.json, params.yaml and two figures."""
+
+import csv
+import json
+import math
+from pathlib import Path
+import textwrap
+from typing import Dict, List, Mapping, Optional, Sequence
+
+from attention_bringup.gallery import GallerySample
+from attention_bringup.params import dump_params
+from attention_bringup.progress import format_duration, PROGRESS_COLUMNS
+
+SUMMARY_FILE = 'summary.json'
+PARAMS_FILE = 'params.yaml'
+PROGRESS_FILE = 'progress.csv'
+PIDS_FILE = 'pids.json'
+LEARNING_CURVE_FILE = 'learning_curve.png'
+GALLERY_FILE = 'saliency_gallery.png'
+
+
+class ProgressWriter:
+    """Appends rows to progress.csv as they come, so a crash keeps what was seen."""
+
+    def __init__(self, path: Path):
+        self._file = open(path, 'w', newline='')
+        self._writer = csv.DictWriter(self._file, fieldnames=PROGRESS_COLUMNS)
+        self._writer.writeheader()
+        self.written = 0
+
+    def write_new(self, rows: Sequence[dict]) -> None:
+        for row in rows[self.written:]:
+            self._writer.writerow(row)
+        self.written = len(rows)
+        self._file.flush()
+
+    def close(self) -> None:
+        self._file.close()
+
+
+def write_json(path: Path, data) -> None:
+    tmp = path.with_suffix(path.suffix + '.tmp')
+    tmp.write_text(json.dumps(data, indent=2, sort_keys=False, default=str) + '\n')
+    tmp.replace(path)
+
+
+def write_params(path: Path, node_params: Mapping[str, Mapping[str, object]],
+                 options: Mapping[str, object], source: str) -> None:
+    """
+    params.yaml: every node's parameters, and the launcher's options under its own name.
+
+    The file is itself a valid ``--params-file`` (nodes ignore sections not named after them).
+    """
+    graph = {name: dict(values) for name, values in node_params.items()}
+    graph['attention_train'] = {key: value for key, value in options.items()
+                                if value is not None and value != []}
+    header = (f'Parameters of this run ({source}).\n'
+              'Reuse: attention_train --params-file <this file> (launcher options are '
+              'informational).')
+    path.write_text(dump_params(graph, header=header))
+
+
+def summary_lines(summary: Mapping) -> List[str]:
+    """Return the three lines printed at the end of a run."""
+    counts = summary.get('message_counts', {})
+    firsts = summary.get('first_step_at_position', {})
+    furthest = summary.get('furthest_position', -1)
+    reached = (f'furthest critical position {furthest} (first at step {firsts[str(furthest)]})'
+               if furthest >= 0 and str(furthest) in firsts else 'no critical position reached')
+    metrics = summary.get('metrics', {})
+    loss = metrics.get('train/loss')
+    loss_text = (f', loss {loss:.4g}' if isinstance(loss, (int, float)) and math.isfinite(loss)
+                 else '')
+    updates = metrics.get('train/updates')
+    updates_text = f'{updates} learner updates' if updates is not None else 'learner'
+    return [
+        f'{summary.get("steps", 0)} steps in {format_duration(summary.get("wall_time_s", 0))} '
+        f'({summary.get("steps_per_s", 0):.1f} steps/s), {summary.get("episodes", 0)} episodes, '
+        f'{summary.get("keys", 0)} keys; {reached}',
+        f'feedback {summary.get("feedback_count", 0)} '
+        f'(mean h {summary.get("feedback_mean", 0):+.2f}), '
+        f'utterances {summary.get("utterance_count", 0)}, saliency images '
+        f'{counts.get("saliency", 0)}; {updates_text}{loss_text}',
+        f'{summary.get("status", "?")}: {summary.get("exit_text", "")}',
+    ]
+
+
+def plot_learning_curve(rows: Sequence[dict], path: Path, title: str) -> bool:
+    """Furthest critical position and cumulative feedback over agent steps."""
+    if not rows:
+        return False
+    import matplotlib
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+
+    steps = [row['agent_step'] for row in rows]
+    figure, (top, bottom) = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
+    top.scatter(steps, [row['position'] for row in rows], s=2, color='0.7',
+                label='position this step (-1: in between)')
+    top.step(steps, [row['furthest_position'] for row in rows], where='post', color='C0',
+             label='furthest so far')
+    top.set_ylabel('critical position')
+    top.set_yticks(range(-1, 6))
+    top.set_ylim(-1.5, 5.5)
+    top.legend(loc='upper left', fontsize='small')
+    bottom.plot(steps, [row['feedback_count'] for row in rows], color='C1',
+                label='feedback messages')
+    bottom.plot(steps, [row['feedback_sum'] for row in rows], color='C2', label='sum of h')
+    bottom.set_xlabel('agent step')
+    bottom.set_ylabel('cumulative feedback')
+    bottom.legend(loc='upper left', fontsize='small')
+    figure.suptitle(title)
+    figure.tight_layout()
+    figure.savefig(path, dpi=100)
+    plt.close(figure)
+    return True
+
+
+def decode_image(raw: Optional[bytes]):
+    """Decode a serialized sensor_msgs/Image into a numpy array (None stays None)."""
+    if raw is None:
+        return None
+    from attention_common.image_codec import image_to_numpy
+    from rclpy.serialization import deserialize_message
+    from sensor_msgs.msg import Image
+    return image_to_numpy(deserialize_message(raw, Image))
+
+
+def plot_gallery(samples: Sequence[GallerySample], path: Path, title: str,
+                 step_of: Optional[Dict[int, int]] = None) -> bool:
+    """Frame, mask and saliency image of a few steps, each row titled with its utterance."""
+    if not samples:
+        return False
+    import matplotlib
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+
+    figure, axes = plt.subplots(len(samples), 3, figsize=(7.5, 3.6 * len(samples)),
+                                squeeze=False)
+    for row, sample in zip(axes, samples):
+        images = (decode_image(sample.observation), decode_image(sample.mask),
+                  decode_image(sample.saliency))
+        for axis, image, name in zip(row, images, ('frame', 'mask', 'saliency')):
+            axis.set_xticks([])
+            axis.set_yticks([])
+            if image is None:
+                axis.text(0.5, 0.5, f'no {name}\nfor this step', ha='center', va='center',
+                          transform=axis.transAxes, color='0.4')
+            else:
+                axis.imshow(image, cmap='gray' if image.ndim == 2 else None,
+                            interpolation='nearest')
+            axis.set_title(name, fontsize='small')
+        step = (step_of or {}).get(sample.stamp_ns)
+        label = f'step {step}' if step is not None else f't = {sample.stamp_ns / 1e9:.2f} s'
+        utterance = sample.utterance or '(no utterance)'
+        row[0].set_ylabel('\n'.join(textwrap.wrap(f'{label}: "{utterance}"', 30)),
+                          fontsize='small')
+    figure.suptitle(title)
+    figure.tight_layout()
+    figure.savefig(path, dpi=90)
+    plt.close(figure)
+    return True

@@ -1,0 +1,209 @@
+"""
+Benchmark: the whole graph (four processes over DDS) against the same loop in one process.
+
+1. Graph: ``attention_train --condition language`` with learning on, for ``--graph-steps``
+   agent steps (default 10,000, so the memory column is "after 10,000 steps"). Numbers come
+   from the run's ``summary.json``: steps/s while training, the observation-to-action latency
+   the launcher sees (receive time of observation T to receive time of the action stamped T),
+   the tamer's own acting time, saliency images/s, learner updates/s and each node's resident
+   memory at the end.
+2. In process: the same cores without ROS (env core, synthetic trainer, saliency maker,
+   TamerAgent with its learner thread), one step after the other, for ``--inprocess-steps``.
+
+Prints a markdown table (targets: graph >= 0.5 x in-process; p99 latency < 10 ms).
+"""
+
+import argparse
+import json
+import os
+from pathlib import Path
+import platform
+import subprocess
+import sys
+import tempfile
+import time
+
+BIN = Path(sys.executable).parent
+
+
+def machine() -> str:
+    model = 'unknown CPU'
+    try:
+        for line in open('/proc/cpuinfo'):
+            if line.startswith('model name'):
+                model = line.split(':', 1)[1].strip()
+                break
+    except OSError:
+        pass
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, 'sched_getaffinity') else os.cpu_count()
+    return f'{model}, {cores} cores, Python {platform.python_version()}, {platform.system()}'
+
+
+def graph_run(steps: int, workdir: Path) -> dict:
+    run_dir = workdir / 'graph'
+    started = time.monotonic()
+    result = subprocess.run(
+        [str(BIN / 'attention_train'), '--steps', str(steps), '--condition', 'language',
+         '--quiet', '--run-dir', str(run_dir)], capture_output=True, text=True)
+    wall = time.monotonic() - started
+    if result.returncode != 0:
+        sys.stderr.write(result.stdout[-3000:] + result.stderr[-3000:])
+        raise SystemExit(f'attention_train failed with exit code {result.returncode}')
+    summary = json.loads((run_dir / 'summary.json').read_text())
+    training_s = summary['training_time_s']
+    metrics = summary['metrics']
+    return {
+        'steps': summary['steps'],
+        'wall_s': wall,
+        'startup_s': summary['startup_s'],
+        'steps_per_s': summary['steps_per_s'],
+        'latency_p50_ms': summary['latency_ms']['p50'],
+        'latency_p99_ms': summary['latency_ms']['p99'],
+        'latency_n': summary['latency_ms']['n'],
+        'act_p50_ms': metrics.get('act/latency_p50_ms'),
+        'act_p99_ms': metrics.get('act/latency_p99_ms'),
+        'saliency_per_s': summary['message_counts']['saliency'] / training_s,
+        'updates_per_s': float(metrics.get('train/updates', 0)) / training_s,
+        'cpu_ms_per_step': {node: 1000.0 * seconds / summary['steps']
+                            for node, seconds in summary.get('cpu_s', {}).items() if seconds},
+        'rss_mb': {node: values.get('VmRSS', 0) / 1024.0
+                   for node, values in summary['rss_kb'].items()},
+        'peak_mb': {node: values.get('VmHWM', 0) / 1024.0
+                    for node, values in summary['rss_kb'].items()},
+    }
+
+
+def in_process_run(steps: int, workdir: Path) -> dict:
+    """Do the graph's work, one step after the other in this process (no ROS, no copies)."""
+    import torch
+    torch.set_num_threads(1)
+    from attention_common.stamps import NS_PER_S
+    from env_node.core import EnvConfig, MontezumaEnv
+    from feedback_node.trainer import SyntheticTrainer, TrainerConfig
+    from saliency_node.grounding import Grounder
+    from saliency_node.manifest import load_manifest, load_template_images
+    from saliency_node.matching import build_objects, method_from_name
+    from saliency_node.saliency import SaliencyConfig, SaliencyMaker
+    from saliency_node.timeline import Timeline
+    from tamer_node.agent import TamerAgent
+    from tamer_node.config import TamerConfig
+
+    env = MontezumaEnv(EnvConfig(seed=0))
+    trainer = SyntheticTrainer(TrainerConfig(utterance_interval=10.0))
+    manifest = load_manifest()
+    maker = SaliencyMaker(build_objects(manifest, load_template_images(manifest)),
+                          manifest.search_region, manifest.background,
+                          method_from_name('TM_CCORR_NORMED'))
+    grounder = Grounder.from_manifest(manifest)
+    timeline = Timeline(int(10.0 * NS_PER_S), capacity=64, require_utterance=True)
+    saliency_config = SaliencyConfig(mode='language')
+    run_dir = workdir / 'in_process'
+    agent = TamerAgent(TamerConfig(alpha=1e-4, run_dir=str(run_dir)), str(run_dir),
+                       log=lambda level, text: None)
+    agent.start()
+    saliency_images = 0
+
+    def render(released) -> None:
+        nonlocal saliency_images
+        for release in released:
+            frame, scene = release.item
+            named = release.utterance.payload if release.utterance else ()
+            image, _ = maker.render(frame, scene, named, saliency_config)
+            if image is not None:
+                saliency_images += 1
+                agent.on_saliency(release.stamp_ns, image)
+
+    def judge(step) -> None:
+        output = trainer.on_position(step.sim_time_ns, step.state.x, step.state.y)
+        for feedback in output.feedback:
+            agent.on_feedback(feedback.h, 'stamped', feedback.stamp_ns)
+        if output.utterance is not None:
+            text = output.utterance.text
+            _, released = timeline.add_utterance(text, step.sim_time_ns,
+                                                 grounder.ground(text).objects)
+            render(released)
+
+    step = env.warm_up()
+    started, cpu_started = time.monotonic(), time.process_time()
+    for _ in range(steps):
+        judge(step)
+        render(timeline.add_observation(step.sim_time_ns,
+                                        (step.observation, maker.observe(step.observation))))
+        action = agent.on_observation(step.sim_time_ns, step.observation)
+        step = env.step(action)
+        if step.done:
+            judge(step)  # the last action is judged; then the episode starts again
+            step = env.reset()
+    elapsed = time.monotonic() - started
+    cpu = time.process_time() - cpu_started
+    metrics = agent.metrics()
+    agent.close()
+    env.close()
+    return {
+        'steps': steps,
+        'steps_per_s': steps / elapsed,
+        'cpu_ms_per_step': 1000.0 * cpu / steps,
+        'act_p50_ms': metrics.get('act/latency_p50_ms'),
+        'act_p99_ms': metrics.get('act/latency_p99_ms'),
+        'saliency_per_s': saliency_images / elapsed,
+        'updates_per_s': float(metrics.get('train/updates', 0)) / elapsed,
+    }
+
+
+def _fmt(value, digits=1) -> str:
+    return '-' if value is None else f'{value:.{digits}f}'
+
+
+def table(graph: dict, local: dict) -> str:
+    ratio = graph['steps_per_s'] / local['steps_per_s'] if local['steps_per_s'] else 0.0
+    ratio_ok = 'ok' if ratio >= 0.5 else 'MISSED'
+    latency_ok = 'ok' if (graph['latency_p99_ms'] or 1e9) < 10.0 else 'MISSED'
+    rows = [
+        ('closed-loop env steps/s, learning on', _fmt(graph['steps_per_s']),
+         _fmt(local['steps_per_s']), ''),
+        ('graph / in-process', _fmt(ratio, 2), '', f'>= 0.50 {ratio_ok}'),
+        ('observation -> action p50 (ms), at the launcher', _fmt(graph['latency_p50_ms'], 2),
+         '', ''),
+        ('observation -> action p99 (ms), at the launcher', _fmt(graph['latency_p99_ms'], 2),
+         '', f'< 10 {latency_ok}'),
+        ('tamer acting time p50 / p99 (ms)',
+         f'{_fmt(graph["act_p50_ms"], 2)} / {_fmt(graph["act_p99_ms"], 2)}',
+         f'{_fmt(local["act_p50_ms"], 2)} / {_fmt(local["act_p99_ms"], 2)}', ''),
+        ('saliency images/s', _fmt(graph['saliency_per_s']), _fmt(local['saliency_per_s']), ''),
+        ('learner updates/s', _fmt(graph['updates_per_s']), _fmt(local['updates_per_s']), ''),
+    ]
+    for node in sorted(graph['rss_mb']):
+        rows.append((f'{node} resident memory after {graph["steps"]} steps (MB; peak)',
+                     f'{graph["rss_mb"][node]:.0f} ({graph["peak_mb"][node]:.0f})', '', ''))
+    cpu = graph['cpu_ms_per_step']
+    rows.append(('CPU time per step (ms): ' + ', '.join(sorted(cpu)),
+                 ' + '.join(f'{cpu[n]:.1f}' for n in sorted(cpu)),
+                 _fmt(local['cpu_ms_per_step']), ''))
+    lines = ['| measure | graph (4 processes) | in process | target |',
+             '|---|---:|---:|---|']
+    lines += [f'| {a} | {b} | {c} | {d} |' for a, b, c, d in rows]
+    return '\n'.join(lines)
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[1])
+    parser.add_argument('--graph-steps', type=int, default=10_000)
+    parser.add_argument('--inprocess-steps', type=int, default=3_000)
+    args = parser.parse_args()
+    with tempfile.TemporaryDirectory(prefix='bench_graph_') as tmp:
+        workdir = Path(tmp)
+        load_before = os.getloadavg()[0]
+        local = in_process_run(args.inprocess_steps, workdir)
+        graph = graph_run(args.graph_steps, workdir)
+        load_after = os.getloadavg()[0]
+    print(f'Machine: {machine()}; load average {load_before:.1f} before, '
+          f'{load_after:.1f} after (1 min)')
+    print(f'Graph run: {graph["steps"]} steps in {graph["wall_s"]:.0f} s wall '
+          f'(start-up {graph["startup_s"]:.1f} s), {graph["latency_n"]} latency samples; '
+          f'in process: {local["steps"]} steps\n')
+    print(table(graph, local))
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

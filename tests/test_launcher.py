@@ -1,0 +1,193 @@
+"""
+The launcher with the real graph: a short training run, a node killed, Ctrl-C, bad options.
+
+Each test runs ``.venv/bin/attention_train`` as a process (it reserves its own ROS domain) and
+judges it only by its exit code, its terminal output and the run folder it leaves.
+"""
+
+import csv
+import json
+import os
+from pathlib import Path
+import signal
+import subprocess
+import sys
+
+from harness import wait_until
+import pytest
+import yaml
+
+BIN = Path(sys.executable).parent
+LAUNCHER = str(BIN / 'attention_train')
+NODES = ('env_node', 'feedback_node', 'saliency_node', 'tamer_node')
+STEPS = 300
+PNG_MAGIC = b'\x89PNG\r\n\x1a\n'
+
+
+def _read_json(path: Path) -> dict:
+    return json.loads(path.read_text())
+
+
+def _progress_rows(run_dir: Path) -> int:
+    try:
+        with open(run_dir / 'progress.csv') as progress:
+            return sum(1 for _ in progress) - 1
+    except OSError:
+        return 0
+
+
+@pytest.fixture(scope='module')
+def finished_run(tmp_path_factory):
+    """One short training run in the language condition, shared by the checks below."""
+    run_dir = tmp_path_factory.mktemp('launcher') / 'run'
+    result = subprocess.run(
+        [LAUNCHER, '--steps', str(STEPS), '--run-dir', str(run_dir), '--seed', '3'],
+        capture_output=True, text=True, timeout=240)
+    return run_dir, result
+
+
+@pytest.mark.topics
+def test_run_completes_and_every_node_exits_cleanly(finished_run):
+    run_dir, result = finished_run
+    assert result.returncode == 0, result.stderr[-4000:]
+    summary = _read_json(run_dir / 'summary.json')
+    assert summary['status'] == 'completed'
+    assert summary['exit_codes'] == dict.fromkeys(NODES, 0)
+    assert all(sent == ['SIGINT'] for sent in summary['signals_sent'].values())
+    assert summary['steps'] == STEPS
+    lines = result.stdout.strip().splitlines()
+    assert lines[-4] == f'Run folder: {run_dir}'
+    assert len(lines[-3:]) == 3 and 'all 4 nodes exited cleanly' in lines[-1]
+
+
+@pytest.mark.topics
+def test_every_node_took_part(finished_run):
+    run_dir, _ = finished_run
+    summary = _read_json(run_dir / 'summary.json')
+    counts = summary['message_counts']
+    # Reliable topics: every step's status and the action that answered it.
+    assert counts['env_status'] >= STEPS and counts['agent_position'] >= STEPS
+    assert counts['action'] >= STEPS
+    # The synthetic trainer, the saliency node and the learner all spoke. (The trainer judges
+    # every step but the jumps no action caused: a respawn after a lost life, a reset.)
+    assert counts['feedback_stamped'] >= 0.8 * STEPS
+    assert summary['feedback_count'] == counts['feedback_stamped']
+    assert counts['utterance_stamped'] >= 1
+    assert counts['observation'] >= 1 and counts['saliency'] >= 1
+    assert counts['saliency_mask'] >= 1
+    assert counts['metrics'] >= 1
+    assert summary['latency_ms']['n'] >= 1 and summary['latency_ms']['p50'] > 0
+    with open(run_dir / 'metrics.csv') as metrics:
+        rows = list(csv.DictReader(metrics))
+    assert rows, 'the tamer wrote no metrics rows'
+    assert float(rows[-1]['feedback/count']) > 0
+
+
+@pytest.mark.topics
+def test_run_folder_holds_what_a_researcher_wants(finished_run):
+    run_dir, _ = finished_run
+    params = yaml.safe_load((run_dir / 'params.yaml').read_text())
+    for node in NODES:
+        assert 'ros__parameters' in params[node], node
+    assert params['env_node']['ros__parameters']['max_steps'] == STEPS
+    assert params['env_node']['ros__parameters']['seed'] == 3
+    assert params['tamer_node']['ros__parameters']['run_dir'] == str(run_dir)
+    assert params['tamer_node']['ros__parameters']['alpha'] == pytest.approx(1e-4)
+    assert params['attention_train']['ros__parameters']['condition'] == 'language'
+    assert _read_json(run_dir / 'summary.json')['parameters_queried'] == sorted(NODES)
+    assert _progress_rows(run_dir) >= STEPS
+    for node in NODES:
+        assert (run_dir / 'logs' / f'{node}.log').stat().st_size > 0, node
+    checkpoints = [p for p in (run_dir / 'checkpoints').iterdir() if p.is_file()]
+    assert checkpoints, 'no checkpoint written'
+    for figure in ('learning_curve.png', 'saliency_gallery.png'):
+        assert (run_dir / figure).read_bytes()[:8] == PNG_MAGIC, figure
+
+
+def _start_long_run(run_dir: Path) -> subprocess.Popen:
+    return subprocess.Popen(
+        [LAUNCHER, '--steps', '100000', '--run-dir', str(run_dir), '--quiet'],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+def _wait_for_steps(launcher: subprocess.Popen, run_dir: Path, steps: int) -> dict:
+    assert wait_until(lambda: _progress_rows(run_dir) >= steps or launcher.poll() is not None,
+                      timeout=150, interval=0.2), 'the graph did not start stepping'
+    assert launcher.poll() is None, launcher.communicate()[1][-4000:]
+    return _read_json(run_dir / 'pids.json')
+
+
+@pytest.mark.topics
+def test_a_dead_node_is_named_and_the_rest_are_stopped(tmp_path):
+    run_dir = tmp_path / 'run'
+    launcher = _start_long_run(run_dir)
+    try:
+        pids = _wait_for_steps(launcher, run_dir, 20)
+        os.kill(pids['saliency_node'], signal.SIGKILL)
+        _, stderr = launcher.communicate(timeout=90)
+    finally:
+        if launcher.poll() is None:
+            launcher.kill()
+    assert launcher.returncode not in (0, None)
+    assert 'saliency_node died (killed by SIGKILL)' in stderr
+    assert 'saliency_node.log' in stderr
+    summary = _read_json(run_dir / 'summary.json')
+    assert summary['status'] == 'node_failed' and summary['failed_node'] == 'saliency_node'
+    assert summary['exit_codes']['saliency_node'] == -signal.SIGKILL
+    for node in ('env_node', 'feedback_node', 'tamer_node'):
+        assert summary['exit_codes'][node] == 0, (node, summary['exit_text'])
+    assert _progress_rows(run_dir) >= 20  # what was written before the crash is kept
+
+
+@pytest.mark.topics
+def test_ctrl_c_stops_every_node_cleanly(tmp_path):
+    run_dir = tmp_path / 'run'
+    launcher = _start_long_run(run_dir)
+    try:
+        _wait_for_steps(launcher, run_dir, 20)
+        launcher.send_signal(signal.SIGINT)
+        stdout, _ = launcher.communicate(timeout=90)
+    finally:
+        if launcher.poll() is None:
+            launcher.kill()
+    assert launcher.returncode == 130
+    summary = _read_json(run_dir / 'summary.json')
+    assert summary['status'] == 'interrupted'
+    assert summary['exit_codes'] == dict.fromkeys(NODES, 0)
+    assert f'Run folder: {run_dir}' in stdout
+
+
+@pytest.mark.topics
+def test_realtime_without_the_synthetic_trainer(tmp_path):
+    run_dir = tmp_path / 'run'
+    result = subprocess.run(
+        [LAUNCHER, '--steps', '60', '--realtime', '--no-synthetic', '--run-dir', str(run_dir),
+         '--quiet'], capture_output=True, text=True, timeout=180)
+    assert result.returncode == 0, result.stderr[-4000:]
+    summary = _read_json(run_dir / 'summary.json')
+    params = yaml.safe_load((run_dir / 'params.yaml').read_text())
+    assert params['env_node']['ros__parameters']['rate_hz'] == 15.0
+    assert params['feedback_node']['ros__parameters']['synthetic'] is False
+    assert params['tamer_node']['ros__parameters']['credit'] == 'window'
+    # Nobody judged or spoke, but the learner acted; real time cannot run faster than 15 Hz
+    # (env_node steps from its start, so the launcher may miss the first second or two).
+    counts = summary['message_counts']
+    assert counts['feedback_stamped'] == 0 and counts['utterance_stamped'] == 0
+    assert counts['action'] >= 1 and summary['steps'] == 60
+    with open(run_dir / 'progress.csv') as progress:
+        rows = list(csv.DictReader(progress))
+    steps = int(rows[-1]['agent_step']) - int(rows[0]['agent_step'])
+    wall = float(rows[-1]['wall_time_s']) - float(rows[0]['wall_time_s'])
+    assert steps >= 1 and wall >= 0.8 * steps / 15.0 - 0.2
+
+
+@pytest.mark.parametrize('argv, message', [
+    (['--params-file', 'does_not_exist.yaml'], 'does_not_exist.yaml'),
+    (['--condition', 'telepathy'], 'invalid choice'),
+])
+def test_bad_options_fail_before_starting_anything(tmp_path, argv, message):
+    result = subprocess.run([LAUNCHER, '--run-dir', str(tmp_path / 'run')] + argv,
+                            capture_output=True, text=True, timeout=60, cwd=tmp_path)
+    assert result.returncode == 2
+    assert message in result.stderr
+    assert not (tmp_path / 'run').exists()

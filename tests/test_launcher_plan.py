@@ -1,0 +1,318 @@
+"""Unit tests of the launcher's pure parts: parameter files, conditions, plans, progress."""
+
+import ast
+import datetime
+from pathlib import Path
+
+from attention_bringup import graph
+from attention_bringup.gallery import cdr_header_stamp_ns, GalleryCollector
+from attention_bringup.params import (
+    dump_params, load_params_file, merge_params, node_params, ParamsFileError, parse_params)
+from attention_bringup.plan import (
+    build_plan, DEFAULT_STEPS, LaunchOptions, OVERRIDES_FILE, parse_options, REALTIME_RATE_HZ)
+from attention_bringup.progress import (
+    format_bar, parse_value, percentile, ProgressTracker)
+import pytest
+
+BIN = Path('/opt/venv/bin')
+LAUNCH_FILE = (Path(__file__).resolve().parents[1] / 'src' / 'attention_bringup' / 'launch'
+               / 'attention.launch.py')
+
+# What each study condition must fix (issue 7 / thesis chapter 5).
+CONDITION_TABLE = {
+    'vanilla': ('off', True, -1.0, 0.0, 'observation'),
+    'language': ('language', True, 10.0, 1e-4, 'observation'),
+    'blind_obs': ('blind_agent', False, 10.0, 0.0, 'saliency'),
+    'blind_saliency': ('blind_agent', False, 10.0, 1e-4, 'observation'),
+    'language_every_step': ('language', True, 0.0, 1e-4, 'observation'),
+    'hidden_agent': ('hidden_agent', False, 10.0, 0.0, 'saliency'),
+}
+
+
+# -- parameter files ------------------------------------------------------------------------
+
+def test_parse_flattens_namespaces_and_normalises_node_names():
+    parsed = parse_params("""
+/env_node:
+  ros__parameters:
+    seed: 3
+    train: {lr: 0.5, batch: {size: 16}}
+""")
+    assert parsed == {'env_node': {'seed': 3, 'train.lr': 0.5, 'train.batch.size': 16}}
+
+
+def test_later_layer_wins_and_wildcard_is_underneath():
+    first = parse_params('/**:\n  ros__parameters: {use_sim_time: true, seed: 1}\n'
+                         'tamer_node:\n  ros__parameters: {alpha: 0.1}\n')
+    second = parse_params('tamer_node:\n  ros__parameters: {alpha: 0.0, seed: 9}\n')
+    merged = merge_params([first, second])
+    assert node_params(merged, 'tamer_node') == {'use_sim_time': True, 'seed': 9, 'alpha': 0.0}
+    assert node_params(merged, 'env_node') == {'use_sim_time': True, 'seed': 1}
+
+
+@pytest.mark.parametrize('text, message', [
+    ('env_node: [1, 2', 'not valid YAML'),
+    ('- a\n- b\n', 'top level'),
+    ('env_node:\n  seed: 1\n', 'ros__parameters'),
+    ('env_node:\n  ros__parameters: [1]\n', 'must be a mapping'),
+    ('env_node:\n  ros__parameters:\n    seed:\n', 'has no value'),
+])
+def test_malformed_files_are_rejected_with_a_reason(text, message):
+    with pytest.raises(ParamsFileError, match=message):
+        parse_params(text, 'x.yaml')
+
+
+def test_missing_file_is_named(tmp_path):
+    with pytest.raises(ParamsFileError, match='nope.yaml'):
+        load_params_file(tmp_path / 'nope.yaml')
+
+
+def test_dump_round_trips_and_quotes_yaml_booleans():
+    params = {'saliency_node': {'mode': 'off', 'blur_radius': 3, 'a.b': 0.0001},
+              'feedback_node': {'synthetic': False, 'utterance_interval': 10.0}}
+    text = dump_params(params, header='two\nlines')
+    assert text.startswith('# two\n# lines\n')
+    assert parse_params(text) == params
+
+
+# -- the shipped YAML files -----------------------------------------------------------------
+
+def test_graph_yaml_names_every_node_and_sim_time():
+    params = load_params_file(graph.graph_file())
+    assert set(params) == set(graph.NODES)
+    for node in graph.NODES:
+        assert params[node].get('use_sim_time', False) is (node != 'env_node'), node
+
+
+@pytest.mark.parametrize('condition', graph.CONDITIONS)
+def test_condition_fixes_its_parameters(condition):
+    mode, require_utterance, interval, alpha, input_image = CONDITION_TABLE[condition]
+    merged = merge_params(load_params_file(p) for p in graph.base_params_files(condition))
+    assert node_params(merged, 'saliency_node')['mode'] == mode
+    assert node_params(merged, 'saliency_node')['require_utterance'] is require_utterance
+    assert node_params(merged, 'feedback_node')['utterance_interval'] == interval
+    assert node_params(merged, 'tamer_node')['alpha'] == pytest.approx(alpha, abs=0)
+    assert node_params(merged, 'tamer_node')['input_image'] == input_image
+    # Floats stay floats, so a node that declared a double accepts them.
+    assert isinstance(node_params(merged, 'feedback_node')['utterance_interval'], float)
+    assert isinstance(node_params(merged, 'tamer_node')['alpha'], float)
+
+
+def test_conditions_differ_pairwise():
+    def fixed(condition):
+        merged = merge_params(load_params_file(p) for p in graph.base_params_files(condition))
+        return tuple(sorted((node, tuple(sorted(node_params(merged, node).items())))
+                            for node in graph.NODES))
+    assert len({fixed(c) for c in graph.CONDITIONS}) == len(graph.CONDITIONS)
+
+
+def test_unknown_condition_is_refused():
+    with pytest.raises(ValueError, match='unknown condition'):
+        graph.condition_file('telepathy')
+
+
+# -- options and plans ----------------------------------------------------------------------
+
+def test_options_defaults_and_repeated_params_files():
+    options = parse_options(['--params-file', 'a.yaml', '--params-file', 'b.yaml'])
+    assert options.steps == DEFAULT_STEPS
+    assert options.condition == 'language'
+    assert options.params_files == ['a.yaml', 'b.yaml']
+    assert options.synthetic and not options.realtime and options.seed is None
+
+
+@pytest.mark.parametrize('argv', [['--steps', '0'], ['--condition', 'nope'], ['--seed', 'x']])
+def test_bad_options_exit(argv):
+    with pytest.raises(SystemExit):
+        parse_options(argv)
+
+
+def _plan(tmp_path, **kwargs):
+    now = datetime.datetime(2025, 1, 2, 3, 4, 5)
+    return build_plan(LaunchOptions(**kwargs), BIN, tmp_path, now=now)
+
+
+def test_plan_starts_four_executables_with_files_in_order(tmp_path):
+    user = tmp_path / 'mine.yaml'
+    user.write_text('tamer_node:\n  ros__parameters: {alpha: 0.5}\n')
+    plan = _plan(tmp_path, steps=123, condition='blind_obs', params_files=['mine.yaml'])
+    assert plan.run_dir == tmp_path / 'runs' / '20250102-030405-blind_obs-seed0'
+    expected_files = [graph.graph_file(), graph.condition_file('blind_obs'), user,
+                      plan.run_dir / OVERRIDES_FILE]
+    assert plan.params_files == expected_files
+    assert [c.name for c in plan.commands] == list(graph.NODES)
+    for command in plan.commands:
+        assert command.argv[:2] == [str(BIN / command.name), '--ros-args']
+        assert command.argv[2::2] == ['--params-file'] * len(expected_files)
+        assert command.argv[3::2] == [str(p) for p in expected_files]
+        assert command.log_path == plan.run_dir / 'logs' / f'{command.name}.log'
+    assert plan.effective['env_node']['max_steps'] == 123
+    assert plan.effective['tamer_node']['alpha'] == 0.5  # the user's file beats the condition
+    assert plan.effective['tamer_node']['input_image'] == 'saliency'
+    assert plan.effective['tamer_node']['run_dir'] == str(plan.run_dir)
+
+
+def test_plan_overrides_follow_the_options(tmp_path):
+    plan = _plan(tmp_path, seed=7, realtime=True, synthetic=False, run_dir='out/r1')
+    assert plan.run_dir == tmp_path / 'out' / 'r1'
+    assert plan.overrides['env_node']['rate_hz'] == REALTIME_RATE_HZ
+    assert isinstance(plan.overrides['env_node']['rate_hz'], float)
+    assert plan.overrides['feedback_node']['synthetic'] is False
+    assert plan.overrides['tamer_node']['credit'] == 'window'
+    assert plan.overrides['env_node']['seed'] == 7
+    for node in graph.NODES:  # every node that has a seed gets the run's seed
+        if 'seed' in load_params_file(graph.graph_file()).get(node, {}):
+            assert plan.effective[node]['seed'] == 7
+    assert parse_params(plan.overrides_text()) == plan.overrides
+
+
+def test_plan_without_options_changes_only_budget_run_dir_and_listeners(tmp_path):
+    plan = _plan(tmp_path)
+    files = load_params_file(graph.graph_file())['env_node']
+    assert plan.overrides == {
+        'env_node': {'max_steps': DEFAULT_STEPS,
+                     # The launcher listens to observation and agent_position too.
+                     'wait_observation_subscribers': files['wait_observation_subscribers'] + 1,
+                     'wait_position_subscribers': files['wait_position_subscribers'] + 1},
+        'tamer_node': {'run_dir': str(plan.run_dir)}}
+
+
+def test_seed_of_the_run_dir_comes_from_the_files(tmp_path):
+    user = tmp_path / 'seed.yaml'
+    user.write_text('env_node:\n  ros__parameters: {seed: 42}\n')
+    plan = _plan(tmp_path, params_files=[str(user)])
+    assert plan.seed == 42 and plan.run_dir.name.endswith('-language-seed42')
+
+
+def test_plan_with_a_missing_user_file_fails(tmp_path):
+    with pytest.raises(ParamsFileError, match='absent.yaml'):
+        _plan(tmp_path, params_files=['absent.yaml'])
+
+
+# -- the launch file stays in step with the launcher ----------------------------------------
+
+def _launch_constants():
+    tree = ast.parse(LAUNCH_FILE.read_text())
+    constants = {}
+    for statement in tree.body:
+        if isinstance(statement, ast.Assign) and isinstance(statement.targets[0], ast.Name):
+            try:
+                constants[statement.targets[0].id] = ast.literal_eval(statement.value)
+            except ValueError:
+                pass
+    return tree, constants
+
+
+def test_launch_file_names_the_same_executables_and_files():
+    tree, constants = _launch_constants()
+    assert constants['NODES'] == graph.NODES
+    assert constants['CONDITIONS'] == graph.CONDITIONS
+    assert constants['GRAPH_FILE'] == graph.GRAPH_FILE
+    assert constants['CONDITIONS_DIR'] == graph.CONDITIONS_DIR
+    functions = {node.name for node in tree.body if isinstance(node, ast.FunctionDef)}
+    assert 'generate_launch_description' in functions
+    defaults = {call.args[0].value: kw.value.value for call in ast.walk(tree)
+                if isinstance(call, ast.Call) and getattr(call.func, 'id', '') ==
+                'DeclareLaunchArgument' for kw in call.keywords if kw.arg == 'default_value'}
+    assert defaults['condition'] == graph.DEFAULT_CONDITION
+    for condition in graph.CONDITIONS:
+        assert graph.condition_file(condition).is_file()
+
+
+# -- progress -------------------------------------------------------------------------------
+
+@pytest.mark.parametrize('text, value', [
+    ('true', True), ('false', False), ('12', 12), ('-1.5', -1.5), ('abc', 'abc')])
+def test_parse_value(text, value):
+    assert parse_value(text) == value and type(parse_value(text)) is type(value)
+
+
+def _tracker():
+    # Position 0 at x < 10, position 2 at x > 100, in between otherwise.
+    return ProgressTracker(position_of=lambda x, y: 0 if x < 10 else (2 if x > 100 else -1))
+
+
+def test_tracker_pairs_by_stamp_in_any_order_and_keeps_the_furthest():
+    tracker = _tracker()
+    tracker.on_position(100, 5, 0, 1)
+    tracker.on_status(200, {'agent_step': 2, 'episode': 0}, 0.2)
+    tracker.on_status(100, {'agent_step': 1, 'episode': 0}, 0.1)
+    tracker.on_position(200, 150, 0, 1)
+    tracker.on_status(300, {'agent_step': 3, 'episode': 1, 'life_lost': True}, 0.3)
+    tracker.on_position(300, 50, 0, 1)
+    assert [r['agent_step'] for r in tracker.rows] == [1, 2, 3]
+    assert [r['position'] for r in tracker.rows] == [0, 2, -1]
+    assert [r['furthest_position'] for r in tracker.rows] == [0, 2, 2]
+    assert tracker.first_step_at == {0: 1, 2: 2}
+    assert tracker.lives_lost == 1 and tracker.episodes == {0, 1}
+
+
+def test_tracker_ignores_other_rooms_and_repeated_steps():
+    tracker = _tracker()
+    tracker.on_status(100, {'agent_step': 1}, 0.1)
+    tracker.on_position(100, 150, 0, 2)  # Room 2's coordinates are not Room 1's positions
+    tracker.on_status(100, {'agent_step': 1}, 0.2)  # published again after a timeout
+    tracker.on_position(100, 150, 0, 2)
+    assert len(tracker.rows) == 1 and tracker.furthest == -1
+    tracker.on_status(200, {'agent_step': 2, 'finished': True}, 0.3)
+    assert tracker.finished
+
+
+def test_tracker_rate():
+    tracker = _tracker()
+    for step in range(11):
+        tracker.on_status(step, {'agent_step': step}, step * 0.5)
+        tracker.on_position(step, 50, 0, 1)
+    assert tracker.rate() == pytest.approx(2.0)
+
+
+def test_percentile_and_bar():
+    assert percentile([], 50) is None
+    assert percentile(list(range(1, 101)), 99) == 99
+    assert percentile([3, 1, 2], 50) == 2
+    bar = format_bar(50, 200, 10.0, 49, 3, episode=1, lives=5)
+    assert '50/200 steps' in bar and 'ETA 0:15' in bar and 'feedback 49' in bar
+    assert 'furthest position 3' in bar and bar.count('#') == 6
+
+
+# -- gallery --------------------------------------------------------------------------------
+
+def _serialized_image(stamp_ns):
+    from rclpy.serialization import serialize_message
+    from sensor_msgs.msg import Image
+    msg = Image(height=1, width=1, encoding='mono8', step=1, data=b'\x07')
+    msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(stamp_ns, 1_000_000_000)
+    return serialize_message(msg)
+
+
+def test_stamp_is_read_from_the_serialized_bytes():
+    assert cdr_header_stamp_ns(_serialized_image(12_345_678_901)) == 12_345_678_901
+    with pytest.raises(ValueError):
+        cdr_header_stamp_ns(b'\x07\x07' + bytes(10))
+
+
+def test_gallery_takes_a_complete_step_after_an_utterance():
+    gallery = GalleryCollector(capacity=2, patience=3)
+    gallery.on_image('observation', 1, b'o1')  # before any request: not taken
+    gallery.on_utterance(1, 'climb the ladder')
+    gallery.on_image('observation', 2, b'o2')
+    gallery.on_image('saliency', 2, b's2')
+    assert not gallery.samples
+    gallery.on_image('saliency_mask', 2, b'm2')
+    sample = gallery.samples[0]
+    assert (sample.stamp_ns, sample.utterance, sample.observation, sample.mask,
+            sample.saliency) == (2, 'climb the ladder', b'o2', b'm2', b's2')
+    gallery.on_utterance(3, 'climb the ladder')  # the same words again: no new sample
+    assert not gallery.waiting
+
+
+def test_gallery_falls_back_to_the_frame_alone():
+    gallery = GalleryCollector(capacity=1, patience=2)
+    gallery.on_schedule(step=40, budget=100)
+    assert not gallery.waiting  # the first slot of one sample is mid-run
+    gallery.on_schedule(step=50, budget=100)
+    assert gallery.waiting
+    for stamp in (5, 6, 7):
+        gallery.on_image('observation', stamp, b'o%d' % stamp)
+    assert gallery.samples[0].observation == b'o7' and gallery.samples[0].saliency is None
+    assert gallery.full
