@@ -65,9 +65,12 @@ def test_every_node_took_part(finished_run):
     run_dir, _ = finished_run
     summary = _read_json(run_dir / 'summary.json')
     counts = summary['message_counts']
-    # Reliable topics: every step's status and the action that answered it.
-    assert counts['env_status'] >= STEPS and counts['agent_position'] >= STEPS
-    assert counts['action'] >= STEPS
+    # The env applied an action stamped with each of its observations (lockstep): the learner
+    # answered every step. The launcher's own counts may miss a first few messages of a topic
+    # whose publisher it matched late (discovery under load), hence the margin.
+    assert summary['steps'] == STEPS, summary
+    for topic in ('env_status', 'agent_position', 'action'):
+        assert counts[topic] >= 0.8 * STEPS, (topic, counts)
     # The synthetic trainer, the saliency node and the learner all spoke. (The trainer judges
     # every step but the jumps no action caused: a respawn after a lost life, a reset.)
     assert counts['feedback_stamped'] >= 0.8 * STEPS

@@ -8,7 +8,8 @@ step). Without an answer for ``action_timeout`` wall seconds, observation T goes
 the same stamp. Until the first answer arrives (start-up), the first observation goes out as
 soon as a subscriber appears and again every ``START_RESEND_S``, not counted as timeouts, so a
 learner still being discovered, or started later, gets it at once. Real time (``rate_hz`` > 0):
-a steady timer steps with the latest valid action.
+once the same start-up subscribers have matched, a steady timer steps with the latest valid
+action.
 """
 
 import threading
@@ -56,11 +57,11 @@ PARAMETERS = {
                      'published and stepping stops; 0 = unlimited.'),
     'end_on_room_exit': (True, 'End the episode (truncated) when the agent leaves Room 1.'),
     'end_on_life_loss': (False, 'End the episode at every life lost instead of at game over.'),
-    'wait_observation_subscribers': (1, 'Lockstep start-up: send the first step only once this '
+    'wait_observation_subscribers': (1, 'Start-up: send the first step only once this '
                                         'many subscribers of observation have matched (the '
                                         'launcher sets the graph\'s count), so no node misses '
                                         'the first steps while DDS discovery runs.'),
-    'wait_position_subscribers': (0, 'Lockstep start-up: likewise for agent_position (the '
+    'wait_position_subscribers': (0, 'Start-up: likewise for agent_position (the '
                                      'synthetic trainer).'),
 }
 
@@ -128,9 +129,12 @@ class EnvNode(Node):
         steady = Clock(clock_type=ClockType.STEADY_TIME)
         self._timeout_timer = None
         self._start_timer = None
+        self._steady = steady
+        self._tick_timer = None
         if self._rate_hz > 0:
-            self._publish_step(self._current)
-            self.create_timer(1.0 / self._rate_hz, self._on_tick, clock=steady)
+            # Real time also waits for the graph's subscribers, then steps on its timer.
+            self._start_timer = self.create_timer(START_POLL_S, self._on_realtime_start,
+                                                  clock=steady)
         else:
             self._timeout_timer = self.create_timer(
                 self._action_timeout, self._on_timeout, clock=steady, autostart=False)
@@ -206,7 +210,7 @@ class EnvNode(Node):
     def _finish(self, step: Step) -> None:
         self._finished = True
         self._pending_ns = None
-        for timer in (self._timeout_timer, self._start_timer):
+        for timer in (self._timeout_timer, self._start_timer, self._tick_timer):
             if timer is not None:
                 timer.cancel()
         self.get_logger().info(
@@ -258,6 +262,23 @@ class EnvNode(Node):
                 f'observation published again ({self._counters.timeouts} timeouts so far)',
                 throttle_duration_sec=LOG_THROTTLE_S)
             self._obs_pub.publish(self._obs_msg)
+
+    def _on_realtime_start(self) -> None:
+        """Real time: start stepping once the graph's subscribers have matched."""
+        with self._lock:
+            if self._tick_timer is not None or self._finished:
+                return
+            missing = self._missing_subscribers()
+            if missing:
+                if time.monotonic() - self._started_at >= self._action_timeout:
+                    self.get_logger().info(
+                        f'waiting for subscribers before the first step: {missing}',
+                        throttle_duration_sec=LOG_THROTTLE_S)
+                return
+            self._start_timer.cancel()
+            self._publish_step(self._current)
+            self._tick_timer = self.create_timer(1.0 / self._rate_hz, self._on_tick,
+                                                 clock=self._steady)
 
     def _on_tick(self) -> None:
         with self._lock:
