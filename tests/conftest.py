@@ -1,4 +1,5 @@
-"""Session-wide test setup: DDS on loopback, in a ROS domain reserved for this pytest session.
+"""
+Session-wide test setup: DDS on loopback, in a ROS domain reserved for this pytest session.
 
 This runs when pytest imports it, before any test module imports rclpy, so every node a test
 starts, in this process or as a child process, inherits the isolation.
@@ -6,9 +7,8 @@ starts, in this process or as a child process, inherits the isolation.
 
 import os
 
-import pytest
-
 from attention_common.isolation import isolated_environ, reserved_domain
+import pytest
 
 _domain_reservation = reserved_domain()
 TEST_DOMAIN_ID = _domain_reservation.__enter__()
@@ -27,7 +27,7 @@ def pytest_unconfigure(config):
 
 @pytest.fixture
 def probe():
-    """A node in a private rclpy context, spinning on its own thread (see harness.TopicProbe)."""
+    """Give a node in a private rclpy context, spinning on its own thread (harness.TopicProbe)."""
     from harness import TopicProbe
     with TopicProbe() as topic_probe:
         yield topic_probe

@@ -1,15 +1,16 @@
-"""Test harness for topic-level tests: real node processes and a probe node that talks to them.
+"""
+Test harness for topic-level tests: real node processes and a probe node that talks to them.
 
 Every wait has a deadline; nothing here sleeps for a fixed time to let things "settle".
 """
 
 import os
+from pathlib import Path
 import signal
 import subprocess
 import sys
 import threading
 import time
-from pathlib import Path
 from typing import Callable, Dict, List, Optional
 
 import rclpy

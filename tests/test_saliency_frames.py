@@ -1,4 +1,5 @@
-"""Template matching and saliency images on real Room 1 frames along the scripted expert's route.
+"""
+Template matching and saliency images on real Room 1 frames along the scripted expert's route.
 
 The frames come from the real emulator: the expert goes from the start to the key, a new episode
 starts (the key is back) and the expert sets off again. Where the objects are is checked against

@@ -14,7 +14,8 @@ setup(
     zip_safe=True,
     maintainer='Language-attention TAMER maintainers',
     maintainer_email='maintainers@example.org',
-    description='Shared pieces of the language-attention TAMER graph: topic names, QoS profiles, Image/numpy conversion, Joy/ALE action mapping, stamps, network isolation.',
+    description='Shared pieces of the language-attention TAMER graph: topic names, QoS, '
+                'Image/numpy conversion, Joy/ALE actions, stamps, network isolation.',
     license='Apache-2.0',
     entry_points={
         'console_scripts': [

@@ -51,7 +51,8 @@ def expert_frames(count: int, seed: int = 0) -> list:
 
 
 def images_per_second(maker, frames, named, config, repeat, codec=False):
-    """Return medians over ``repeat`` passes of images per wall second and per CPU second.
+    """
+    Return medians over ``repeat`` passes of images per wall second and per CPU second.
 
     Each pass starts from a fresh matcher. CPU seconds are this process's (one thread): what one
     core does even while other processes share the machine.

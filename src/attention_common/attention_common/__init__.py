@@ -1,1 +1,6 @@
-"""Shared pieces of the language-attention TAMER graph: topic names, QoS profiles, Image/numpy conversion, Joy/ALE action mapping, stamps, network isolation."""
+"""
+Shared pieces of the language-attention TAMER graph.
+
+Topic names, QoS profiles, Image/numpy conversion, Joy/ALE action mapping, stamps, network
+isolation and the nodes' shared ``main()``.
+"""

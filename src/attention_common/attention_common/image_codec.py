@@ -1,4 +1,5 @@
-"""sensor_msgs/Image <-> numpy, without cv_bridge.
+"""
+sensor_msgs/Image <-> numpy, without cv_bridge.
 
 Rows are decoded by ``step`` (a row may be padded) and ``is_bigendian`` is honoured, as
 cv_bridge's ``imgmsg_to_cv2`` does. Only the encodings the graph uses are supported; any other
@@ -29,7 +30,8 @@ ENCODINGS = {
 
 
 def image_to_numpy(msg) -> np.ndarray:
-    """Decode a sensor_msgs/Image into an (h, w, c) array, or (h, w) for one channel.
+    """
+    Decode a sensor_msgs/Image into an (h, w, c) array, or (h, w) for one channel.
 
     Returns a fresh, C-contiguous array that does not alias the message.
     """
@@ -59,7 +61,8 @@ def image_to_numpy(msg) -> np.ndarray:
 
 
 def numpy_to_image(arr: np.ndarray, encoding: str, msg) -> object:
-    """Fill the sensor_msgs/Image ``msg`` with ``arr`` (header left to the caller) and return it.
+    """
+    Fill the sensor_msgs/Image ``msg`` with ``arr`` (header left to the caller) and return it.
 
     ``arr`` is (h, w, 3) uint8 for rgb8, (h, w) uint8 for mono8, (h, w) float32 for 32FC1.
     """
@@ -76,4 +79,3 @@ def numpy_to_image(arr: np.ndarray, encoding: str, msg) -> object:
     msg.step = msg.width * enc.channels * enc.dtype.itemsize
     msg.data = array.array('B', arr.tobytes())
     return msg
-

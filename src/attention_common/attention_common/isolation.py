@@ -1,4 +1,5 @@
-"""Keep DDS on this machine, in a domain of our own.
+"""
+Keep DDS on this machine, in a domain of our own.
 
 Every process this project starts (nodes, tests, benchmarks, the launcher) runs with
 ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`` and a ``ROS_DOMAIN_ID`` reserved for the run, so no
@@ -18,8 +19,9 @@ from domain_coordinator import domain_id as _coordinated_domain_id
 DISCOVERY_RANGE = 'LOCALHOST'
 
 
-def isolated_environ(domain_id: int, base: Optional[Mapping[str, str]] = None) -> Dict[str, str]:
-    """Return a copy of ``base`` (default ``os.environ``) set to localhost discovery in a domain."""
+def isolated_environ(domain_id: int,
+                     base: Optional[Mapping[str, str]] = None) -> Dict[str, str]:
+    """Return a copy of ``base`` (default ``os.environ``) with localhost discovery in a domain."""
     env = dict(os.environ if base is None else base)
     env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = DISCOVERY_RANGE
     env['ROS_DOMAIN_ID'] = str(int(domain_id))
@@ -30,7 +32,8 @@ def isolated_environ(domain_id: int, base: Optional[Mapping[str, str]] = None) -
 
 @contextlib.contextmanager
 def reserved_domain() -> Iterator[int]:
-    """Reserve a free ROS domain (1..100) on this machine for the duration of the block.
+    """
+    Reserve a free ROS domain (1..100) on this machine for the duration of the block.
 
     Uses ``domain_coordinator``, which holds a local port per domain, starting from a random
     domain so that concurrent runs spread out.

@@ -1,4 +1,5 @@
-"""ALE's 18 joystick actions <-> sensor_msgs/Joy, by the ROS joystick convention.
+"""
+ALE's 18 joystick actions <-> sensor_msgs/Joy, by the ROS joystick convention.
 
 ``axes[0]`` is horizontal (+1 left, -1 right), ``axes[1]`` vertical (+1 up, -1 down) and
 ``buttons[0]`` is fire, so a gamepad through the standard ``joy`` driver can play.

@@ -1,4 +1,5 @@
-"""The Jazzy ``main()`` every node of the graph shares.
+"""
+The Jazzy ``main()`` every node of the graph shares.
 
 ``rclpy.init``, build the node, spin, and on Ctrl-C / SIGINT / SIGTERM destroy the node and shut
 down cleanly with exit code 0. A node that cannot start (a missing template file, say) raises

@@ -1,4 +1,5 @@
-"""QoS profiles of the graph, chosen on purpose and named once.
+"""
+QoS profiles of the graph, chosen on purpose and named once.
 
 - Frames and actions are RELIABLE: in lockstep the env waits for the action that answers each
   observation, so a lost frame would stall a step until ``action_timeout``.

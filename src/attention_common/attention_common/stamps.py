@@ -1,4 +1,5 @@
-"""Stamps as integer nanoseconds, and a bounded store that pairs messages by stamp.
+"""
+Stamps as integer nanoseconds, and a bounded store that pairs messages by stamp.
 
 Every stamped message of one environment step carries that step's stamp, so integer
 nanoseconds are an exact key for pairing (floats are not).
@@ -16,23 +17,24 @@ V = TypeVar('V')
 
 
 def stamp_to_ns(stamp) -> int:
-    """builtin_interfaces/Time (or anything with sec, nanosec) -> int nanoseconds."""
+    """Convert builtin_interfaces/Time (or anything with sec, nanosec) to int nanoseconds."""
     return int(stamp.sec) * NS_PER_S + int(stamp.nanosec)
 
 
 def ns_to_stamp(ns: int) -> Time:
-    """int nanoseconds -> builtin_interfaces/Time."""
+    """Convert int nanoseconds to builtin_interfaces/Time."""
     sec, nanosec = divmod(int(ns), NS_PER_S)
     return Time(sec=sec, nanosec=nanosec)
 
 
 def frames_to_ns(frames: int, frame_rate_hz: float = 60.0) -> int:
-    """Simulation time of ``frames`` emulator frames (the Atari runs at 60 Hz)."""
+    """Return the simulation time of ``frames`` emulator frames (the Atari runs at 60 Hz)."""
     return int(round(frames * NS_PER_S / frame_rate_hz))
 
 
 class StampStore(Generic[V]):
-    """A bounded, thread-safe map from stamp (ns) to a value, oldest evicted first.
+    """
+    A bounded, thread-safe map from stamp (ns) to a value, oldest evicted first.
 
     Used to pair messages of different topics that belong to the same step, whatever order
     they arrive in: put one side, ``pop`` it when the other side with the same stamp arrives.

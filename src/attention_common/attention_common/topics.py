@@ -1,4 +1,5 @@
-"""Topic names of the graph, in one place.
+"""
+Topic names of the graph, in one place.
 
 Names are relative, so a namespace (``--ros-args -r __ns:=/trial3``) or a remap moves them.
 Only ``/clock`` is absolute: ROS 2 time sources listen there.
@@ -7,7 +8,7 @@ Only ``/clock`` is absolute: ROS 2 time sources listen there.
 OBSERVATION = 'observation'          # sensor_msgs/Image rgb8 210x160, env -> saliency, tamer
 AGENT_POSITION = 'agent_position'    # geometry_msgs/PointStamped x, y, z=room, env -> feedback
 ACTION = 'action'                    # sensor_msgs/Joy stamped with the observation it answers
-ENV_STATUS = 'env_status'            # diagnostic_msgs/DiagnosticArray, one per step (reward, lives...)
+ENV_STATUS = 'env_status'            # diagnostic_msgs/DiagnosticArray, one per step
 CLOCK = '/clock'                     # rosgraph_msgs/Clock, simulation time, env -> all
 
 UTTERANCE = 'utterance'              # std_msgs/String, feedback node or a person

@@ -59,7 +59,7 @@ PARAMETERS = {
     'end_on_life_loss': (False, 'End the episode at every life lost instead of at game over.'),
     'wait_observation_subscribers': (1, 'Start-up: send the first step only once this '
                                         'many subscribers of observation have matched (the '
-                                        'launcher sets the graph\'s count), so no node misses '
+                                        "launcher sets the graph's count), so no node misses "
                                         'the first steps while DDS discovery runs.'),
     'wait_position_subscribers': (0, 'Start-up: likewise for agent_position (the '
                                      'synthetic trainer).'),

@@ -1,4 +1,5 @@
-"""Language-guided template matching: utterances into saliency images.
+"""
+Language-guided template matching: utterances into saliency images.
 
 The objects an utterance names (and the agent) stay sharp, the rest is blurred.
 """

@@ -1,4 +1,5 @@
-"""Draw a picture like the thesis's Figure 3.3: frame, mask and saliency for three utterances.
+"""
+Draw a picture like the thesis's Figure 3.3: frame, mask and saliency for three utterances.
 
     saliency_figure                                   # docs/saliency_figure.png
     saliency_figure --out fig.png --step 88 --utterance 'Jump up to get the key' ...

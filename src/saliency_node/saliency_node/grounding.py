@@ -1,4 +1,5 @@
-"""Ground an utterance: find the template objects its words name (no rclpy).
+"""
+Ground an utterance: find the template objects its words name (no rclpy).
 
 Words are lower-cased, split on anything that is not a letter, and reduced to a crude stem
 (plural and verb endings dropped: "Climb downs the ladders!" -> climb, down, the, ladder) on both

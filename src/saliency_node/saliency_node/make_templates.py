@@ -1,4 +1,5 @@
-"""Regenerate the template PNGs from frames the real emulator renders.
+"""
+Regenerate the template PNGs from frames the real emulator renders.
 
 Plays the manifest's ``route`` from a seeded reset (no sticky actions, so every run renders the
 same frames) and cuts each template from the frame after its ``step``: a static object's ``box``

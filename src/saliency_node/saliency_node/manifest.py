@@ -1,4 +1,5 @@
-"""The template manifest: what an utterance can name, and where each template comes from.
+"""
+The template manifest: what an utterance can name, and where each template comes from.
 
 The manifest (YAML) is the only place that knows the game. It lists the objects (name, words
 that refer to it, match threshold, whether it moves, whether it is the agent) and, for each of

@@ -1,4 +1,5 @@
-"""Template matching: every instance of every object in a frame (no rclpy).
+"""
+Template matching: every instance of every object in a frame (no rclpy).
 
 The score is ``cv2.matchTemplate`` with ``TM_CCORR_NORMED`` by default, which is equation 3.1 of
 the thesis (normalized cross-correlation); the method is a parameter. All positions whose score
@@ -79,7 +80,8 @@ def iou(a: Match, b: Match) -> float:
 
 
 def non_max_suppression(matches: Sequence[Match], overlap: float = 0.0) -> List[Match]:
-    """Keep the best first (the larger on a tie), drop any whose IoU with a kept one > overlap.
+    """
+    Keep the best first (the larger on a tie), drop any whose IoU with a kept one > overlap.
 
     The default 0 drops any overlap: two instances of one object never overlap in a frame,
     while a repetitive object (a ladder's rungs) also matches, less well, shifted by a period.
@@ -361,7 +363,8 @@ class SceneMatcher:
             self._static_in_frame = None
 
     def _search_around(self, rect) -> None:
-        """Search every static object wherever it could overlap ``rect`` (plus the margin).
+        """
+        Search every static object wherever it could overlap ``rect`` (plus the margin).
 
         Cached matches clear of ``rect`` are unaffected by the change and kept; the rest are
         replaced by what the search finds. A change over the whole region is a full search.

@@ -1,4 +1,5 @@
-"""saliency_node: utterances and observations in, saliency images (and their masks) out.
+"""
+saliency_node: utterances and observations in, saliency images (and their masks) out.
 
 Every observation is matched against the templates as it arrives (cheap: the static objects
 are cached, see ``matching``); an observation with a valid utterance (``timeline``) is rendered

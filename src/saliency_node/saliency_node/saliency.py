@@ -1,4 +1,5 @@
-"""Saliency images: keep the named objects and the agent sharp, blur the rest (no rclpy).
+"""
+Saliency images: keep the named objects and the agent sharp, blur the rest (no rclpy).
 
     saliency = mask * frame + (1 - mask) * GaussianBlur(frame)
 
@@ -75,7 +76,8 @@ def gaussian_kernel(radius: int, sigma: float) -> np.ndarray:
 
 
 def gaussian_blur(frame: np.ndarray, radius: int, sigma: float = 0.0) -> np.ndarray:
-    """Gaussian blur with kernel ``2 * radius + 1``, borders reflected as cv2.GaussianBlur does.
+    """
+    Gaussian blur with kernel ``2 * radius + 1``, borders reflected as cv2.GaussianBlur does.
 
     The same separable filter as ``cv2.GaussianBlur``, applied with ``cv2.sepFilter2D``, which is
     about 3x faster on uint8 frames; values differ from ``cv2.GaussianBlur``'s fixed-point

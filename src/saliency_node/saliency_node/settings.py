@@ -1,4 +1,5 @@
-"""The node's parameters: names, defaults, descriptions, and their checking (no rclpy).
+"""
+The node's parameters: names, defaults, descriptions, and their checking (no rclpy).
 
 Numbers accept an integer or a float (``-p utterance_ttl:=5`` and ``:=5.0`` both work), and
 ``mode`` accepts the boolean false that YAML makes of ``off``.

@@ -1,4 +1,5 @@
-"""Decide when an observation gets a saliency image, and under which utterance (no rclpy).
+"""
+Decide when an observation gets a saliency image, and under which utterance (no rclpy).
 
 An utterance is valid from its stamp for ``ttl`` of simulation time. An observation stamped T
 gets an image under the newest utterance stamped at or before T that is still valid at T. An
@@ -62,7 +63,8 @@ class Timeline:
 
     def add_utterance(self, text: str, stamp_ns: Optional[int] = None,
                       payload: Any = None) -> Tuple[Utterance, List[Release]]:
-        """Add an utterance (stamp None: stamped now).
+        """
+        Add an utterance (stamp None: stamped now).
 
         Returns it and the held observations it covers (before any observation, a plain
         utterance waits for the first one: its stamp is then None).
