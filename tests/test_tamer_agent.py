@@ -2,6 +2,7 @@
 
 import json
 import threading
+import time
 
 from harness import wait_until
 import numpy as np
@@ -240,7 +241,7 @@ def test_acting_never_waits_for_training_or_disk(agents):
 
 
 def test_weight_snapshots_reach_the_acting_copy(agents):
-    agent = agents()
+    agent = agents(update_clock='wall')  # minibatches go on while no step comes
     play(agent, 10)
     for i in range(10):
         agent.on_feedback(1.0, 'stamped', stamp(i))
@@ -251,6 +252,65 @@ def test_weight_snapshots_reach_the_acting_copy(agents):
     assert agent.actor.model.training is False and agent.learner.model.training is True
     for name, tensor in agent.actor.model.state_dict().items():
         assert tensor.data_ptr() != agent.learner.model.state_dict()[name].data_ptr()
+
+
+# The minibatch schedule counts simulation time.
+def caught_up(agent, last_stamp):
+    """Tell whether the learner read the last step's time and finished all it owed."""
+    schedule = agent.worker.schedule
+    return (schedule.last_reading == last_stamp / 1e9 and schedule.owed < 1.0
+            and agent.worker.stats()['train/minibatch_updates'] == schedule.taken)
+
+
+def minibatches_after(agent, steps, seconds_per_step):
+    """One feedback, then ``steps`` observations at a wall pace; return the minibatch count."""
+    play(agent, 1)
+    agent.on_feedback(1.0, 'stamped', stamp(0))
+    assert processed(agent, 1)
+    assert wait_until(lambda: agent.worker.schedule.started, 5)  # owed from here on
+    for i in range(1, steps + 1):
+        agent.on_observation(stamp(i), FRAMES[i % len(FRAMES)])
+        time.sleep(seconds_per_step)
+    assert wait_until(lambda: caught_up(agent, stamp(steps)), 20)
+    stats = agent.worker.stats()
+    assert stats['train/skipped_updates'] == 0
+    return stats['train/minibatch_updates']
+
+
+def test_minibatch_updates_per_sim_second_do_not_depend_on_the_wall_speed(agents, tmp_path):
+    """10 s of simulation (150 steps) in ~0.1 s or in ~1.5 s of wall time: 6 Hz x 10 s each."""
+    fast = agents(tmp_path / 'fast', update_rate_hz=6.0, update_backlog_s=60.0)
+    slow = agents(tmp_path / 'slow', update_rate_hz=6.0, update_backlog_s=60.0)
+    assert abs(minibatches_after(fast, 150, 0.0) - 60) <= 1
+    assert abs(minibatches_after(slow, 150, 0.01) - 60) <= 1
+    metrics = slow.metrics()
+    assert metrics['train/minibatch_updates_per_step'] == pytest.approx(60 / 151, abs=0.01)
+    assert metrics['train/updates_per_step'] == pytest.approx(61 / 151, abs=0.01)
+
+
+def test_a_learner_that_cannot_keep_up_drops_and_counts_the_excess(agents):
+    agent = agents(update_rate_hz=15.0, update_backlog_s=1.0)  # one per step, 15 may wait
+    play(agent, 1)
+    agent.on_feedback(1.0, 'stamped', stamp(0))
+    assert processed(agent, 1)
+    assert wait_until(lambda: agent.worker.schedule.started, 5)
+    release = threading.Event()
+    train_step = agent.learner.train_step
+    agent.learner.train_step = lambda batch: (release.wait(30), train_step(batch))[1]
+    play(agent, 100, first=1)  # the learner is stuck in its first minibatch meanwhile
+    release.set()
+    assert wait_until(lambda: caught_up(agent, stamp(100)), 20)
+    stats = agent.worker.stats()
+    assert stats['train/skipped_updates'] >= 100 - 16 - 1
+    assert stats['train/minibatch_updates'] + stats['train/skipped_updates'] == \
+        pytest.approx(100, abs=1)
+
+
+def test_wall_clock_updates_go_on_without_new_steps(agents):
+    agent = agents(update_clock='wall', update_rate_hz=50.0)
+    play(agent, 2)
+    agent.on_feedback(1.0, 'stamped', stamp(0))
+    assert wait_until(lambda: agent.worker.stats()['train/minibatch_updates'] >= 5, 10)
 
 
 # Files, checkpoints and resume.

@@ -14,6 +14,7 @@ from tamer_node.model import (
     ConvAutoencoder, Encoder, FRAME_SHAPE, HModel, INPUT_SHAPE, load_encoder, preprocess,
     save_encoder, to_input)
 from tamer_node.pretrain import collect_frames, saliency_like
+from tamer_node.schedule import UpdateSchedule
 import torch
 
 torch.set_num_threads(1)
@@ -347,7 +348,8 @@ def test_every_config_field_has_a_docstring_and_validates():
     assert config.alpha == 1e-4 and config.credit == 'step'
     config.validate()
     for change in ({'credit': 'later'}, {'input_image': 'mask'}, {'alpha': -1.0},
-                   {'window_min_s': 5.0}, {'batch_size': 0}):
+                   {'window_min_s': 5.0}, {'batch_size': 0}, {'update_clock': 'cpu'},
+                   {'update_backlog_s': -1.0}):
         with pytest.raises(ValueError):
             TamerConfig(**change).validate()
 
@@ -366,3 +368,46 @@ def test_a_non_finite_loss_is_skipped_and_the_weights_stay_intact():
     terms = learner.train_step(batch)
     assert terms['skipped'] == 1 and learner.updates == 0
     assert all(torch.equal(v, model.state_dict()[k]) for k, v in before.items())
+
+
+def run_schedule(schedule, clock_times, learner_keeps_up=True):
+    """Feed clock readings; take every owed update (or none); return the updates taken."""
+    taken = 0
+    for t in clock_times:
+        schedule.start(t)
+        schedule.advance(t)
+        while learner_keeps_up and schedule.take():
+            taken += 1
+    return taken
+
+
+@pytest.mark.parametrize('steps_per_reading', [1, 4, 37])
+def test_the_schedule_owes_the_rate_per_clock_second_whatever_the_reading_pace(
+        steps_per_reading):
+    """15 Hz sim stamps read every step, or in bursts (a fast or slow learner), give 5/s."""
+    stamps = [i * (S // 15) for i in range(15 * 60 + 1)]  # one minute of simulation
+    readings = stamps[::steps_per_reading] + [stamps[-1]]
+    schedule = UpdateSchedule(rate_hz=5.0, max_backlog=1000)
+    taken = run_schedule(schedule, [t / S for t in readings])
+    assert abs(taken - 5 * 60) <= 1 and schedule.skipped == 0
+
+
+def test_the_schedule_drops_and_counts_what_exceeds_the_backlog():
+    schedule = UpdateSchedule(rate_hz=10.0, max_backlog=20)
+    schedule.start(0.0)
+    schedule.advance(10.0)  # 100 owed, 20 may wait
+    assert schedule.skipped == 80 and int(schedule.owed) == 20
+    assert run_schedule(schedule, [10.0]) == 20 and not schedule.take()
+
+
+def test_the_schedule_restarts_when_the_clock_goes_back_and_owes_nothing_before_start():
+    schedule = UpdateSchedule(rate_hz=2.0, max_backlog=100)
+    schedule.advance(50.0)
+    assert not schedule.take() and schedule.due_at() == float('inf')  # not started
+    schedule.start(50.0)
+    schedule.advance(51.0)
+    assert schedule.take() and schedule.take() and not schedule.take()
+    schedule.advance(3.0)  # a new trial's stamps
+    assert not schedule.take() and schedule.due_at() == pytest.approx(3.5)
+    schedule.advance(4.0)
+    assert schedule.take() and schedule.take() and not schedule.take()

@@ -130,10 +130,26 @@ def test_answers_every_observation_while_it_trains(probe, start_node, tmp_path, 
     assert sorted(stamps) == [(i + 1) * STEP_NS for i in range(steps)]  # each once, no other
     assert graph.wait_metrics(lambda v: v['feedback/count'] == steps
                               and v['buffer/size'] == steps and v['model/version'] > steps
-                              and v['pairing/with_saliency'] > 0
-                              and v['train/updates_per_s'] > 0), graph.latest_metrics()
+                              and v['pairing/with_saliency'] == steps // 2
+                              and v['train/updates_per_s'] > 0), str(graph.latest_metrics())
     metrics = graph.latest_metrics()
-    assert math.isfinite(metrics['train/loss']) and metrics['act/version'] > 0
+    assert metrics['act/version'] > 0
+    # Half the steps had a saliency image: half the buffer rows, and the L2 term is non-zero
+    # (a mean over the period's updates that had one, not the last update's value).
+    assert metrics['buffer/with_saliency_fraction'] == 0.5
+    assert metrics['train/l2_updates'] > 0
+    rows = [values(m) for m in graph.metrics.snapshot()]
+    with_l2 = [v for v in rows if v['train/period_l2_updates'] > 0]
+    assert with_l2 and all(v['train/l2'] > 0.0 for v in with_l2)
+    assert all(math.isfinite(v['train/loss']) for v in rows if v['train/period_updates'] > 0)
+    # 30 minibatch updates per simulation second: 2 per 15 Hz step (from the first feedback
+    # on), plus the immediate ones; the learner may lag behind, then catches up.
+    assert graph.wait_metrics(lambda v: v['train/updates_owed'] == 0
+                              and v['train/minibatch_updates_per_step'] > 1.9), \
+        str(graph.latest_metrics())
+    metrics = graph.latest_metrics()
+    assert metrics['train/minibatch_updates_per_step'] <= 2.0
+    assert metrics['train/updates_per_step'] > 2.0 and metrics['train/skipped_updates'] == 0
 
     # alpha changes at run time; other parameters are start-up only.
     assert set_parameter(probe, 'alpha', 0.0).successful
@@ -145,7 +161,33 @@ def test_answers_every_observation_while_it_trains(probe, start_node, tmp_path, 
     assert (run_dir / 'checkpoints' / 'checkpoint.pt').exists()
     header = (run_dir / 'metrics.csv').read_text().splitlines()[0].split(',')
     assert {'train/loss', 'train/mse', 'train/l2', 'feedback/count', 'buffer/size',
-            'train/updates_per_s', 'model/version', 'drop/observation'} <= set(header)
+            'train/updates_per_s', 'model/version', 'drop/observation', 'train/l2_updates',
+            'train/updates_per_step', 'buffer/with_saliency_fraction'} <= set(header)
+
+
+def test_saliency_input_answers_a_step_whose_saliency_image_never_comes(
+        probe, start_node, tmp_path, frames):
+    """input_image:=saliency acts on the saliency image; without one, on the observation."""
+    node = start_node('tamer_node', {'run_dir': str(tmp_path / 'run'), 'input_image': 'saliency',
+                                     'alpha': 0.0, 'saliency_timeout_s': 0.3,
+                                     'metrics_period_s': 0.2})
+    graph = Graph(probe)
+    graph.wait_connected(node)
+    graph.step(frames[0], STEP_NS, saliency=blurred(frames[0]))
+    lonely = graph.step(frames[1], 2 * STEP_NS, timeout=5.0)  # no saliency image: fallback
+    assert graph.wait_metrics(lambda v: v['act/fallback_observation'] == 1
+                              and v['act/count'] == 2), graph.latest_metrics()
+    graph.saliency.publish(graph.image(blurred(frames[1]), 2 * STEP_NS))  # too late
+    assert graph.step(frames[1], 2 * STEP_NS) == lonely  # the env re-sends: the same answer
+    graph.step(frames[2], 3 * STEP_NS, saliency=blurred(frames[2]))
+    graph.judge(3 * STEP_NS, 1.0)
+    assert graph.wait_metrics(lambda v: v['feedback/count'] == 1 and v['act/count'] == 3
+                              and v['act/fallback_observation'] == 1), graph.latest_metrics()
+    answers = [stamp_to_ns(m.header.stamp) for m in graph.actions.snapshot()]
+    assert answers.count(STEP_NS) == 1 and answers.count(3 * STEP_NS) == 1
+    assert answers.count(2 * STEP_NS) == 2  # the fallback and the re-send, not the late image
+    assert 'acted on its observation' in node.log_text()
+    assert node.stop(signal.SIGINT) == 0
 
 
 def test_kill_9_then_resume_loses_no_logged_feedback(probe, start_node, tmp_path, frames):

@@ -5,7 +5,8 @@ Benchmark tamer_node: acting while the learner trains, in process and over topic
    each step the agent answers the frame, a saliency image of the frame arrives, and feedback
    judges the step (+1 when the agent's x grew, -1 otherwise, stamped with the step), so the
    learner does an immediate update per feedback plus its minibatches at ``update_rate_hz``
-   with the L2 term on every sample (alpha 1e-4), and writes its journal and checkpoints, as in
+   per second of simulation time (``update_clock`` sim; 15 steps per sim second), with the L2
+   term on every sample (alpha 1e-4), and writes its journal and checkpoints, as in
    a ``language_every_step`` run. Reports actions/s, act latency, updates/s and memory after
    ``--steps`` steps.
 2. Over topics: the real ``tamer_node`` executable, fed by a probe in lockstep (observation and
@@ -79,6 +80,7 @@ def bench_in_process(steps: int, update_rate_hz: float, checkpoint_period_s: flo
                 step = env.reset()
         elapsed = time.perf_counter() - started
         stats = agent.metrics()
+        caught_up = time.perf_counter() - started
         rss_end = rss_mb()
         agent.close()
         env.close()
@@ -94,6 +96,10 @@ def bench_in_process(steps: int, update_rate_hz: float, checkpoint_period_s: flo
         'updates_per_s': stats['train/updates'] / elapsed,
         'updates': stats['train/updates'],
         'immediate': stats['train/immediate_updates'],
+        'updates_per_step': stats['train/updates_per_step'],
+        'minibatch_per_step': stats['train/minibatch_updates_per_step'],
+        'skipped': stats['train/skipped_updates'],
+        'elapsed_s': caught_up,
         'feedback': stats['feedback/count'],
         'buffer': stats['buffer/size'],
         'checkpoints': stats['checkpoint/count'],
@@ -174,6 +180,9 @@ def bench_topics(steps: int, frames: np.ndarray, log_path: Path) -> dict:
         'trip_p99_ms': float(np.percentile(trips_ms, 99)),
         'node_act_p99_ms': values.get('act/latency_p99_ms', '?'),
         'node_updates_per_s': values.get('train/updates_per_s', '?'),
+        'node_updates_per_step': values.get('train/updates_per_step', '?'),
+        'node_minibatch_per_step': values.get('train/minibatch_updates_per_step', '?'),
+        'node_skipped': values.get('train/skipped_updates', '?'),
         'exit_code': code,
     }
 
@@ -182,7 +191,8 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.strip().splitlines()[0])
     parser.add_argument('--steps', type=int, default=10_000, help='in-process steps')
     parser.add_argument('--topic-steps', type=int, default=1500, help='steps over topics')
-    parser.add_argument('--update-rate-hz', type=float, default=20.0)
+    parser.add_argument('--update-rate-hz', type=float, default=TamerConfig.update_rate_hz,
+                        help='minibatch updates per simulation second')
     parser.add_argument('--checkpoint-period-s', type=float, default=15.0)
     parser.add_argument('--alpha', type=float, default=1e-4)
     args = parser.parse_args()
@@ -199,6 +209,9 @@ def main() -> int:
           f'ms  (max {result["act_max_ms"]:.1f} ms)')
     print(f'  learner updates/s         {result["updates_per_s"]:8.1f}  ({result["updates"]} '
           f'updates, {result["immediate"]} of them immediate)')
+    print(f'  updates per agent step    {result["updates_per_step"]:8.3f}  (minibatches '
+          f'{result["minibatch_per_step"]:.3f}/step, {result["skipped"]} owed ones skipped: '
+          'the learner could not keep up)')
     print(f'  feedback learned from     {result["feedback"]}, buffer {result["buffer"]}, '
           f'{result["checkpoints"]} checkpoints (last {result["checkpoint_mb"]:.0f} MB)')
     print(f'  resident memory           {result["rss_start_mb"]:.0f} MB at start, '
@@ -216,7 +229,9 @@ def main() -> int:
         print(f'  observation -> action     {over["trip_p50_ms"]:6.2f} / '
               f'{over["trip_p99_ms"]:6.2f} ms p50 / p99 (node-side act p99 '
               f'{over["node_act_p99_ms"]} ms)')
-        print(f'  learner updates/s         {over["node_updates_per_s"]}')
+        print(f'  learner updates/s         {over["node_updates_per_s"]} (last metrics period)')
+        print(f'  updates per agent step    {over["node_updates_per_step"]} (minibatches '
+              f'{over["node_minibatch_per_step"]}/step, {over["node_skipped"]} skipped)')
         print(f'  exit code on SIGINT       {over["exit_code"]}')
     return 0
 

@@ -51,7 +51,8 @@ class LaunchOptions:
     """No progress bar, only the final summary."""
 
 
-def _positive_int(text: str) -> int:
+def positive_int(text: str) -> int:
+    """Parse a whole number of at least 1 (an argparse type)."""
     value = int(text)
     if value < 1:
         raise argparse.ArgumentTypeError(f'must be at least 1, got {value}')
@@ -64,7 +65,7 @@ def argument_parser() -> argparse.ArgumentParser:
         description="Train the Deep TAMER agent on Montezuma's Revenge (Room 1): start the four "
                     'nodes, show progress, stop them at the end of the budget and write a run '
                     'folder.')
-    parser.add_argument('--steps', type=_positive_int, default=DEFAULT_STEPS,
+    parser.add_argument('--steps', type=positive_int, default=DEFAULT_STEPS,
                         help=f'budget of agent steps (default {DEFAULT_STEPS})')
     parser.add_argument('--condition', choices=CONDITIONS, default=DEFAULT_CONDITION,
                         help=f'study condition (default {DEFAULT_CONDITION})')

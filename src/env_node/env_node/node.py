@@ -19,14 +19,13 @@ from attention_common import qos, topics
 from attention_common.image_codec import numpy_to_image
 from attention_common.joy_actions import joy_to_action, JoyActionError
 from attention_common.node_main import run_node, StartupError
+from attention_common.parameters import declare_parameters
 from attention_common.stamps import ns_to_stamp, stamp_to_ns
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from env_node.core import EnvConfig, MontezumaEnv, Step
 from env_node.status import Counters, STATUS_KEYS, STATUS_NAME, status_values
 from geometry_msgs.msg import PointStamped
-from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.clock import Clock, ClockType
-from rclpy.exceptions import InvalidParameterTypeException
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import Image, Joy
@@ -73,7 +72,7 @@ class EnvNode(Node):
 
     def __init__(self, **kwargs):
         super().__init__('env_node', **kwargs)
-        params = self._declare_parameters()
+        params = declare_parameters(self, PARAMETERS)
         self._rate_hz = params['rate_hz']
         self._action_timeout = params['action_timeout']
         self._max_steps = params['max_steps']
@@ -144,23 +143,6 @@ class EnvNode(Node):
             f'{config.env_id} ready ({mode}, frameskip {config.frameskip}, seed {config.seed}, '
             f'{config.warmup_steps} warm-up steps done, first stamp '
             f'{self._current.sim_time_ns} ns)')
-
-    def _declare_parameters(self) -> dict:
-        values = {}
-        for name, (default, description) in PARAMETERS.items():
-            is_float = isinstance(default, float)
-            descriptor = ParameterDescriptor(description=description, read_only=True,
-                                             dynamic_typing=is_float)
-            try:
-                value = self.declare_parameter(name, default, descriptor).value
-            except InvalidParameterTypeException as error:
-                raise StartupError(f'parameter {name}: {error}') from None
-            if is_float:
-                if isinstance(value, bool) or not isinstance(value, (int, float)):
-                    raise StartupError(f'parameter {name} must be a number, got {value!r}')
-                value = float(value)
-            values[name] = value
-        return values
 
     # -- publishing -------------------------------------------------------------------------
 

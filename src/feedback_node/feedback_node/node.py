@@ -14,15 +14,15 @@ import math
 
 from attention_common import qos, topics
 from attention_common.node_main import run_node, StartupError
+from attention_common.parameters import declare_parameters
 from attention_common.stamps import NS_PER_S, ns_to_stamp, stamp_to_ns
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from feedback_node.human_input import excerpt, feedback_problem, utterance_problem
 from feedback_node.trainer import SyntheticTrainer, TrainerConfig
 from feedback_node.utterances import Utterance
 from geometry_msgs.msg import PointStamped, Vector3Stamped
-from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.clock import Clock, ClockType
-from rclpy.exceptions import InvalidParameterTypeException
 from rclpy.node import Node
 from std_msgs.msg import Float32, String
 
@@ -58,7 +58,7 @@ class FeedbackNode(Node):
 
     def __init__(self, **kwargs):
         super().__init__('feedback_node', **kwargs)
-        params = self._declare_parameters()
+        params = declare_parameters(self, PARAMETERS, runtime=('synthetic',))
         self._synthetic = bool(params.pop('synthetic'))
         try:
             self._config = TrainerConfig(**params)
@@ -85,24 +85,6 @@ class FeedbackNode(Node):
         self.create_timer(SUMMARY_PERIOD_S, self._log_summary, clock=steady)
         self._last_summary = None
         self.get_logger().info(f'feedback_node ready: {self._mode_text()}')
-
-    def _declare_parameters(self) -> dict:
-        values = {}
-        for name, (default, description) in PARAMETERS.items():
-            is_float = isinstance(default, float)
-            descriptor = ParameterDescriptor(description=description,
-                                             read_only=name != 'synthetic',
-                                             dynamic_typing=is_float)
-            try:
-                value = self.declare_parameter(name, default, descriptor).value
-            except InvalidParameterTypeException as error:
-                raise StartupError(f'parameter {name}: {error}') from None
-            if is_float:
-                if isinstance(value, bool) or not isinstance(value, (int, float)):
-                    raise StartupError(f'parameter {name} must be a number, got {value!r}')
-                value = float(value)
-            values[name] = value
-        return values
 
     def _mode_text(self) -> str:
         if not self._synthetic:

@@ -13,7 +13,7 @@ from pathlib import Path
 import sys
 import threading
 import time
-from typing import Callable, Optional
+from typing import Callable, List, Optional, Tuple
 
 import cv2
 import numpy as np
@@ -95,15 +95,22 @@ class TamerAgent:
                                     self.journal, self.disk, self.run_dir, self._log)
         # Every key exists from the start, so readers never see the dict change size.
         self.counters = collections.Counter(dict.fromkeys((
-            'act/count', 'drop/observation', 'drop/saliency', 'utterance/count',
-            'utterance/empty', 'feedback/logged', 'disk/feedback_log_errors'), 0))
+            'act/count', 'act/fallback_observation', 'drop/observation', 'drop/saliency',
+            'utterance/count', 'utterance/empty', 'feedback/logged', 'disk/feedback_log_errors'),
+            0))
         self._feedback_lock = threading.Lock()  # seq order == log order == inbox order
+        # input_image 'saliency': observations waiting for their saliency image (stamp ->
+        # monotonic arrival time); answered on the observation after saliency_timeout_s.
+        self._awaiting: 'collections.OrderedDict[int, float]' = (
+            collections.OrderedDict())
+        self._awaiting_lock = threading.Lock()
         self._seq = 0
         self._now: Optional[int] = None
         self._stamped_at = -math.inf
         self._act_seconds = collections.deque(maxlen=1000)
         self._last_rate = (time.monotonic(), 0)
         self._started = False
+        self._updates_at_start = (0, 0)  # (all, minibatch) updates before this process
 
     def _check_run_dir(self) -> None:
         self.run_dir.mkdir(parents=True, exist_ok=True)
@@ -120,6 +127,8 @@ class TamerAgent:
         replayed = 0
         if self.config.resume:
             replayed = self._resume()
+        counters = self.worker.stats()
+        self._updates_at_start = (counters['train/updates'], counters['train/minibatch_updates'])
         self.disk.start()
         self.worker.start()
         self._started = True
@@ -165,11 +174,16 @@ class TamerAgent:
         started = time.perf_counter()
         image = self._preprocess('observation', rgb)
         self._now = stamp if self._now is None else max(self._now, stamp)
+        self.worker.tick(stamp)  # simulation time for the minibatch schedule
         record = self.history.put_image('observation', stamp, image)
         self.journal.append(KIND_OBSERVATION, stamp, image=image)
         if self.config.input_image == 'saliency':
             self.worker.wake()
-            if record.saliency is None:
+            if record.action is None and record.saliency is None:
+                with self._awaiting_lock:  # answered by on_saliency or act_overdue
+                    self._awaiting.setdefault(stamp, time.monotonic())
+                    while len(self._awaiting) > self.config.history_steps:
+                        self._awaiting.popitem(last=False)
                 return None
         return self._act(record, started)
 
@@ -182,7 +196,43 @@ class TamerAgent:
         self.worker.wake()
         if self.config.input_image != 'saliency':
             return None
+        with self._awaiting_lock:
+            self._awaiting.pop(stamp, None)
+        if record.action is not None:
+            return None  # answered already (fallback); a re-sent observation is re-answered
+        if record.observation is None:
+            return None  # its observation was dropped: the env will re-send the step
         return self._act(record, started)
+
+    def act_overdue(self, now: Optional[float] = None) -> List[Tuple[int, int]]:
+        """
+        Answer the observations whose saliency image is ``saliency_timeout_s`` (wall) late.
+
+        ``input_image: saliency`` only: such a step is answered by acting on its observation
+        (counted in ``act/fallback_observation``; the step is not learned from, as the learner
+        learns on saliency images only). Returns [(stamp, action)] to publish; the node calls
+        it on a timer.
+        """
+        now = time.monotonic() if now is None else now
+        due = []
+        with self._awaiting_lock:
+            while self._awaiting:
+                stamp, arrived = next(iter(self._awaiting.items()))
+                if now - arrived < self.config.saliency_timeout_s:
+                    break
+                self._awaiting.popitem(last=False)
+                due.append(stamp)
+        answers = []
+        for stamp in due:
+            record = self.history.get(stamp)
+            if record is None or record.action is not None or record.observation is None:
+                continue
+            action = self._act(record, None, image=record.observation)
+            self.counters['act/fallback_observation'] += 1
+            self._log('warn', f'no saliency image for step {stamp} within '
+                      f'{self.config.saliency_timeout_s} s: acted on its observation')
+            answers.append((stamp, action))
+        return answers
 
     def _preprocess(self, kind: str, rgb: np.ndarray) -> torch.Tensor:
         try:
@@ -191,14 +241,16 @@ class TamerAgent:
             self.counters[f'drop/{kind}'] += 1
             raise BadInput(f'{kind} dropped: {error}') from error
 
-    def _act(self, record, started: float) -> int:
+    def _act(self, record, started: Optional[float], image=None) -> int:
         if record.action is not None:
             return record.action  # the env re-sent this step: answer it the same way
         self.actor.refresh(self.slot)
-        action = self.actor.greedy(record.image(self.config.input_image))
+        action = self.actor.greedy(record.image(self.config.input_image) if image is None
+                                   else image)
         self.history.set_action(record.stamp, action)
         self.journal.append(KIND_ACTION, record.stamp, action)
-        self._act_seconds.append(time.perf_counter() - started)
+        if started is not None:
+            self._act_seconds.append(time.perf_counter() - started)
         self.counters['act/count'] += 1
         return action
 
@@ -274,8 +326,13 @@ class TamerAgent:
 
     # Metrics.
     def metrics(self) -> dict:
-        """Namespaced key -> number, for the metrics topic and metrics.csv."""
+        """
+        Namespaced key -> number, for the metrics topic and metrics.csv.
+
+        The loss means cover the updates since the previous call (one metrics period).
+        """
         values = self.worker.stats()
+        values.update(self.worker.period_losses())
         values.update(self.counters)
         values['feedback/received'] = self._seq
         values['act/version'] = self.actor.version
@@ -285,7 +342,13 @@ class TamerAgent:
         last_time, last_updates = self._last_rate
         values['train/updates_per_s'] = (updates - last_updates) / max(now - last_time, 1e-9)
         self._last_rate = (now, updates)
-        seconds = sorted(self._act_seconds)
+        # Per agent step acted on by this process (a resumed run's earlier updates left out).
+        acted = max(values['act/count'], 1)
+        values['train/updates_per_step'] = (updates - self._updates_at_start[0]) / acted
+        values['train/minibatch_updates_per_step'] = (
+            values['train/minibatch_updates'] - self._updates_at_start[1]) / acted
+        seconds = sorted(self._act_seconds)  # the last 1000 acts; NaN before the first
+        values['act/latency_p50_ms'] = values['act/latency_p99_ms'] = math.nan
         if seconds:
             values['act/latency_p50_ms'] = 1e3 * seconds[len(seconds) // 2]
             values['act/latency_p99_ms'] = 1e3 * seconds[int(0.99 * (len(seconds) - 1))]

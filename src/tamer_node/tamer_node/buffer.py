@@ -145,6 +145,13 @@ class FeedbackBuffer:
         with self._lock:
             return self._size
 
+    def companion_fraction(self) -> float:
+        """Fraction of the samples held that have a companion (saliency) image; 0 if empty."""
+        with self._lock:
+            if not self._size:
+                return 0.0
+            return float(self.columns['has_companion'][:self._size].mean())
+
     def state_dict(self, images: bool = True) -> dict:
         """
         Return a consistent copy, oldest first, for ``torch.load(weights_only=True)``.

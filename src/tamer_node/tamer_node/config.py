@@ -8,6 +8,7 @@ from typing import Dict
 
 CREDIT_MODES = ('step', 'window')
 INPUT_IMAGES = ('observation', 'saliency')
+UPDATE_CLOCKS = ('sim', 'wall')
 
 
 @dataclass
@@ -28,8 +29,14 @@ class TamerConfig:
     """Samples per minibatch update from the replay buffer."""
     buffer_capacity: int = 10000
     """Labelled samples the feedback replay buffer keeps (oldest dropped first)."""
-    update_rate_hz: float = 20.0
-    """Minibatch updates per wall-clock second from the buffer (0 = only immediate updates)."""
+    update_rate_hz: float = 5.0
+    """Minibatch updates from the buffer per second of update_clock (0 = immediate only)."""
+    update_clock: str = 'sim'
+    """'sim': update_rate_hz per second of simulation time (observation stamps), the same
+    number per agent step whatever the wall speed; 'wall': per wall-clock second."""
+    update_backlog_s: float = 5.0
+    """update_clock 'sim': the learner may owe this many sim seconds of minibatch updates; older
+    owed updates are dropped and counted (train/skipped_updates). 'wall' never catches up."""
     immediate_update: bool = True
     """Also take one update on the samples of each new feedback as soon as it is paired."""
     saliency_timeout_s: float = 0.5
@@ -63,6 +70,9 @@ class TamerConfig:
         """Raise ValueError naming the first field with an impossible value."""
         if self.credit not in CREDIT_MODES:
             raise ValueError(f'credit must be one of {CREDIT_MODES}, got {self.credit!r}')
+        if self.update_clock not in UPDATE_CLOCKS:
+            raise ValueError(
+                f'update_clock must be one of {UPDATE_CLOCKS}, got {self.update_clock!r}')
         if self.input_image not in INPUT_IMAGES:
             raise ValueError(
                 f'input_image must be one of {INPUT_IMAGES}, got {self.input_image!r}')
@@ -75,6 +85,7 @@ class TamerConfig:
             'batch_size': self.batch_size >= 1,
             'buffer_capacity': self.buffer_capacity >= 1,
             'update_rate_hz': self.update_rate_hz >= 0.0,
+            'update_backlog_s': self.update_backlog_s >= 0.0,
             'saliency_timeout_s': self.saliency_timeout_s >= 0.0,
             'history_steps': self.history_steps >= 2,
             'stamped_active_s': self.stamped_active_s >= 0.0,
@@ -98,7 +109,7 @@ def field_docs(cls=TamerConfig) -> Dict[str, str]:
                 and isinstance(following, ast.Expr)
                 and isinstance(following.value, ast.Constant)
                 and isinstance(following.value.value, str)):
-            docs[node.target.id] = following.value.value.strip()
+            docs[node.target.id] = ' '.join(following.value.value.split())
     return docs
 
 

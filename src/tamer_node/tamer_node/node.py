@@ -19,13 +19,13 @@ from attention_common import qos, topics
 from attention_common.image_codec import image_to_numpy, ImageFormatError
 from attention_common.joy_actions import action_to_joy
 from attention_common.node_main import run_node, StartupError
-from attention_common.stamps import stamp_to_ns
+from attention_common.stamps import ns_to_stamp, stamp_to_ns
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Vector3Stamped
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.node import Node
 from sensor_msgs.msg import Image, Joy
-from std_msgs.msg import Float32, String
+from std_msgs.msg import Float32, Header, String
 from tamer_node.agent import BadInput, default_run_dir, share_the_cpu, TamerAgent
 from tamer_node.config import field_docs, TamerConfig
 from tamer_node.persistence import json_number
@@ -61,6 +61,11 @@ class TamerNode(Node):
         self.create_subscription(Float32, topics.FEEDBACK, self._on_feedback, qos.HUMAN)
         self.create_subscription(String, topics.UTTERANCE, self._on_utterance, qos.HUMAN)
         self.create_timer(self.config.metrics_period_s, self._publish_metrics)
+        self._frame_id = ''
+        if self.config.input_image == 'saliency':
+            # A step whose saliency image does not come is answered on its observation.
+            period = min(0.05, max(0.005, self.config.saliency_timeout_s / 5))
+            self.create_timer(period, self._answer_overdue)
         self.get_logger().info(
             f'ready: run_dir {self.config.run_dir}, alpha {self.config.alpha}, credit '
             f'{self.config.credit}, input_image {self.config.input_image}, model version '
@@ -120,6 +125,7 @@ class TamerNode(Node):
         try:
             rgb = image_to_numpy(msg)
             action = handler(stamp_to_ns(msg.header.stamp), rgb)
+            self._frame_id = msg.header.frame_id
         except (ImageFormatError, BadInput) as error:
             if isinstance(error, ImageFormatError):
                 self.agent.counters[f'drop/{kind}'] += 1
@@ -127,12 +133,20 @@ class TamerNode(Node):
                                       throttle_duration_sec=LOG_THROTTLE_S)
             return
         if action is not None:
-            joy = Joy()
-            joy.header = msg.header
-            axes, buttons = action_to_joy(action)
-            joy.axes = [float(a) for a in axes]
-            joy.buttons = [int(b) for b in buttons]
-            self.action_pub.publish(joy)
+            self._publish_action(msg.header, action)
+
+    def _answer_overdue(self) -> None:
+        for stamp, action in self.agent.act_overdue():
+            header = Header(stamp=ns_to_stamp(stamp), frame_id=self._frame_id)
+            self._publish_action(header, action)
+
+    def _publish_action(self, header: Header, action: int) -> None:
+        joy = Joy()
+        joy.header = header
+        axes, buttons = action_to_joy(action)
+        joy.axes = [float(a) for a in axes]
+        joy.buttons = [int(b) for b in buttons]
+        self.action_pub.publish(joy)
 
     # Feedback path.
     def _on_feedback_stamped(self, msg: Vector3Stamped) -> None:

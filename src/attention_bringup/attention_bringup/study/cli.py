@@ -23,6 +23,7 @@ import time
 from typing import List, Optional, Sequence
 
 from attention_bringup.graph import CONDITIONS
+from attention_bringup.plan import positive_int
 from attention_bringup.study import analysis as study_analysis
 from attention_bringup.study import figures, report, runner
 from attention_bringup.study.trials import is_usable, load_records, write_json
@@ -37,13 +38,6 @@ ANALYSIS_FILE = 'analysis.json'
 EXIT_INTERRUPTED = 130
 
 
-def _positive_int(text: str) -> int:
-    value = int(text)
-    if value < 1:
-        raise argparse.ArgumentTypeError(f'must be at least 1, got {value}')
-    return value
-
-
 def argument_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog='attention_study',
@@ -52,11 +46,11 @@ def argument_parser() -> argparse.ArgumentParser:
                     'are skipped, so an interrupted study resumes with the same command.')
     parser.add_argument('--conditions', nargs='+', choices=CONDITIONS, default=list(CONDITIONS),
                         metavar='NAME', help=f'conditions (default all: {" ".join(CONDITIONS)})')
-    parser.add_argument('--trials', type=_positive_int, default=DEFAULT_TRIALS,
+    parser.add_argument('--trials', type=positive_int, default=DEFAULT_TRIALS,
                         help=f'trials per condition, seeds 0..N-1 (default {DEFAULT_TRIALS})')
-    parser.add_argument('--steps', type=_positive_int, default=DEFAULT_STEPS,
+    parser.add_argument('--steps', type=positive_int, default=DEFAULT_STEPS,
                         help=f'agent steps per trial (default {DEFAULT_STEPS})')
-    parser.add_argument('--parallel', type=_positive_int, default=1,
+    parser.add_argument('--parallel', type=positive_int, default=1,
                         help='trials run side by side (default 1; each is 4 node processes)')
     parser.add_argument('--out', default=DEFAULT_OUT,
                         help=f'folder of trial results and figures (default {DEFAULT_OUT})')

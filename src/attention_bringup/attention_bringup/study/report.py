@@ -139,7 +139,8 @@ def protocol_section(protocol: Mapping, analysis: Mapping) -> str:
         '- Key rate: fraction of trials in which the agent picked up the key at least once. '
         'Episodes: episodes begun (an episode ends on game over or leaving Room 1). Lives '
         "used: lives lost over the trial. Learner updates / step: the tamer's gradient "
-        'steps (`train/updates`: one per new feedback plus minibatches at a wall-clock rate) '
+        'steps (`train/updates`: immediate updates on new feedback plus minibatches at a fixed '
+        'rate per second of simulation time) '
         'divided by agent steps.',
     ])
 
