@@ -10,7 +10,7 @@ import pytest
 from tamer_node.agent import BadInput, TamerAgent
 from tamer_node.config import TamerConfig
 from tamer_node.credit import NS_PER_S
-from tamer_node.model import Encoder, INPUT_SHAPE
+from tamer_node.model import Encoder, FEATURE_SIZE, INPUT_SHAPE
 from tamer_node.persistence import (
     CHECKPOINT_DIR, CHECKPOINT_FILE, FEEDBACK_LOG, FeedbackLog, KIND_ACTION, KIND_OBSERVATION,
     load_checkpoint, StepJournal)
@@ -211,8 +211,29 @@ def test_saliency_input_acts_on_the_saliency_image(agents):
     agent.on_feedback(1.0, 'stamped', stamp(0))
     assert processed(agent, 1)
     [sample] = agent.buffer.samples()
-    assert torch.equal(sample.state, agent.history.get(stamp(0)).saliency)
-    assert torch.equal(sample.companion, agent.history.get(stamp(0)).observation)
+    record = agent.history.get(stamp(0))  # a frozen encoder: the buffer holds features
+    assert torch.equal(sample.state, agent.actor.features(record.saliency))
+    assert torch.equal(sample.companion, agent.actor.features(record.observation))
+
+
+@pytest.mark.parametrize('fine_tune', [False, True])
+def test_a_frozen_encoder_learns_on_the_features_the_actor_computed(agents, fine_tune):
+    agent = agents(alpha=1e-4, fine_tune_encoder=fine_tune)
+    play(agent, 1)
+    agent.on_saliency(stamp(0), FRAMES[5])
+    agent.on_feedback(-1.0, 'stamped', stamp(0))
+    assert processed(agent, 1)
+    [sample] = agent.buffer.samples()
+    record = agent.history.get(stamp(0))
+    if fine_tune:  # the encoder learns too: images, run through it at every update
+        assert torch.equal(sample.state, record.observation)
+        assert torch.equal(sample.companion, record.saliency)
+        assert record.observation_features is None
+    else:  # the actor's features, the saliency image encoded once when paired
+        assert torch.equal(sample.state, record.observation_features)
+        assert sample.state.shape == (FEATURE_SIZE,)
+        assert torch.equal(sample.companion, agent.actor.features(record.saliency))
+    assert wait_until(lambda: agent.worker.stats()['train/l2_updates'] >= 1, 10.0)
 
 
 # Acting and training run apart.

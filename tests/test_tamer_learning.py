@@ -194,6 +194,62 @@ def test_greedy_action_learns_to_depend_on_where_the_agent_is():
     assert (chosen == wanted).all(), f'{(chosen == wanted).mean():.0%} right after {update}'
 
 
+def train_like_a_lockstep_run(learner, features, seed=0, feedback=1400, minibatch_every=5):
+    """
+    Feedback as a real 1,500-step run gave it: h in {-1, 0, +1} in that run's proportions.
+
+    Logged from `attention_train --steps 1500` (vanilla): 864 x -1, 416 x 0, 92 x +1 on 1,372
+    steps, the actions mostly the same few. One immediate update per feedback and a minibatch
+    of 32 every fifth (the learner's pace in lockstep).
+    """
+    rng = np.random.default_rng(seed)
+    buffer = FeedbackBuffer(feedback, (features.shape[1],), np.float32)
+    for i in range(feedback):
+        frame = int(rng.integers(len(features)))
+        sample = Sample(features[frame], None, int(rng.choice([0, 1, 3, 4, 11, 12])),
+                        float(rng.choice([-1.0, 0.0, 1.0], p=[0.63, 0.30, 0.07])), 1.0, i, i)
+        buffer.add(sample)
+        learner.train_step(collate([sample]))
+        if i % minibatch_every == 0:
+            learner.train_step(buffer.sample(32, rng))
+
+
+@pytest.fixture(scope='module')
+def route_frames():
+    """50 distinct Room 1 frames along the expert's route (with detours), preprocessed."""
+    frames, _ = collect_frames(50, seed=4, stride=6)
+    return np.stack([preprocess(f) for f in frames])
+
+
+def test_head_stays_alive_and_state_dependent_under_mostly_negative_feedback(route_frames):
+    """The collapse seen in real runs: every hidden unit dead, H the same on every frame."""
+    config = TamerConfig()
+    torch.manual_seed(0)
+    model = HModel(config.head_hidden, encoder=load_encoder(DEFAULT_ENCODER))
+    learner = Learner(model, config.learning_rate, alpha=0.0,
+                      max_grad_norm=config.max_grad_norm)
+    with torch.no_grad():
+        features = model.features(to_input(route_frames))
+    train_like_a_lockstep_run(learner, features)
+    with torch.no_grad():
+        hidden = model.hidden(features)
+        outputs = model.from_features(features)
+    alive = (hidden > 0).any(dim=0).float().mean().item()
+    assert alive > 0.5, f'only {alive:.0%} of the hidden units are ever active'
+    assert outputs.std(dim=0).mean().item() > 0.05, 'H hardly differs between frames'
+    assert len(set(outputs.argmax(dim=1).tolist())) >= 2, 'one action on every frame'
+
+
+def test_cached_features_give_the_same_h_as_the_image_path(route_frames):
+    torch.manual_seed(0)
+    model = HModel(encoder=load_encoder(DEFAULT_ENCODER))
+    assert model.encoder.has_feature_stats(), 'the shipped encoder has no feature stats'
+    images = to_input(route_frames[:8])
+    with torch.no_grad():
+        assert torch.allclose(model(images), model.from_features(model.features(images)),
+                              atol=1e-6)
+
+
 # Credit assignment on hand-made timelines.
 @pytest.mark.parametrize('span,feedback_at,expected', [
     ((0.0, 1.0), 1.0, 0.8 / 3.8),            # the window [-3, 0.8] covers [0, 0.8]

@@ -187,6 +187,31 @@ def bench_topics(steps: int, frames: np.ndarray, log_path: Path) -> dict:
     }
 
 
+def bench_update_cost(repeats: int = 50) -> dict:
+    """Milliseconds per Learner.train_step on 32 frames + 32 saliency images (alpha 1e-4)."""
+    import torch
+    from tamer_node.agent import DEFAULT_ENCODER
+    from tamer_node.buffer import collate, Sample
+    from tamer_node.learner import Learner
+    from tamer_node.model import HModel, INPUT_SHAPE, load_encoder, to_input
+    rng = np.random.default_rng(0)
+    images = torch.from_numpy(rng.integers(0, 256, (64,) + INPUT_SHAPE, np.uint8))
+    model = HModel(encoder=load_encoder(DEFAULT_ENCODER))
+    learner = Learner(model, alpha=1e-4)
+    with torch.no_grad():
+        features = model.features(to_input(images))
+    result = {}
+    for name, items in (('images', images), ('features', features)):
+        batch = collate([Sample(items[i], items[32 + i], i % 18, -1.0, 1.0, i, i)
+                         for i in range(32)])
+        learner.train_step(batch)
+        started = time.perf_counter()
+        for _ in range(repeats):
+            learner.train_step(batch)
+        result[name] = 1e3 * (time.perf_counter() - started) / repeats
+    return result
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.strip().splitlines()[0])
     parser.add_argument('--steps', type=int, default=10_000, help='in-process steps')
@@ -197,6 +222,10 @@ def main() -> int:
     parser.add_argument('--alpha', type=float, default=1e-4)
     args = parser.parse_args()
     share_the_cpu()
+
+    cost = bench_update_cost()
+    print(f'one update, 32 samples + 32 saliency images: {cost["images"]:.2f} ms through the '
+          f'encoder (fine_tune_encoder / before), {cost["features"]:.2f} ms on cached features')
 
     result = bench_in_process(args.steps, args.update_rate_hz, args.checkpoint_period_s,
                               args.alpha)

@@ -21,7 +21,7 @@ from tamer_node.buffer import FeedbackBuffer
 from tamer_node.config import TamerConfig
 from tamer_node.history import StepHistory
 from tamer_node.learner import Learner
-from tamer_node.model import Encoder, HModel, load_encoder, preprocess
+from tamer_node.model import Encoder, FEATURE_SIZE, HModel, load_encoder, preprocess
 from tamer_node.persistence import (
     CHECKPOINT_DIR, DiskWriter, FEEDBACK_LOG, FeedbackLog, json_number, KIND_ACTION,
     KIND_OBSERVATION, KIND_SALIENCY, load_checkpoint, METRICS_CSV, MetricsCsv, StepJournal,
@@ -81,10 +81,13 @@ class TamerAgent:
         torch.manual_seed(config.seed)
         model = HModel(config.head_hidden, freeze_encoder=not config.fine_tune_encoder,
                        encoder=encoder)
-        self.learner = Learner(model, config.learning_rate, config.alpha)
+        self.learner = Learner(model, config.learning_rate, config.alpha, config.max_grad_norm)
         self.actor = ActingModel(model)
         self.slot = SnapshotSlot()
-        self.buffer = FeedbackBuffer(config.buffer_capacity)
+        # A frozen encoder: the buffer holds each image's features (computed once, by the
+        # actor for the image it acts on), so an update runs the small head only.
+        self.buffer = (FeedbackBuffer(config.buffer_capacity, (FEATURE_SIZE,), np.float32)
+                       if model.freeze_encoder else FeedbackBuffer(config.buffer_capacity))
         self.history = StepHistory(config.history_steps)
         steps_dir = self.run_dir / STEPS_DIR
         self.journal = StepJournal(steps_dir, StepJournal.last_segment(steps_dir) + 1)
@@ -245,8 +248,14 @@ class TamerAgent:
         if record.action is not None:
             return record.action  # the env re-sent this step: answer it the same way
         self.actor.refresh(self.slot)
-        action = self.actor.greedy(record.image(self.config.input_image) if image is None
-                                   else image)
+        kind = self.config.input_image if image is None else 'observation'
+        image = record.image(kind) if image is None else image
+        if self.actor.model.freeze_encoder:
+            features = self.actor.features(image)  # encoded once: acting and learning share it
+            self.history.put_features(kind, record.stamp, features)
+            action = self.actor.greedy_on_features(features)
+        else:
+            action = self.actor.greedy(image)
         self.history.set_action(record.stamp, action)
         self.journal.append(KIND_ACTION, record.stamp, action)
         if started is not None:

@@ -1,7 +1,7 @@
 """The feedback replay buffer: bounded, lock-protected, sampled into a NamedTuple of tensors."""
 
 import threading
-from typing import Iterable, List, NamedTuple, Optional
+from typing import Iterable, List, NamedTuple, Optional, Tuple
 
 import numpy as np
 from tamer_node.model import INPUT_SHAPE
@@ -12,7 +12,8 @@ class Sample(NamedTuple):
     """
     One labelled (state, action) pair, as the learner makes it from a feedback.
 
-    Images are (105, 80) uint8 tensors.
+    ``state`` and ``companion`` are (105, 80) uint8 images, or, with a frozen encoder, their
+    (1120,) float32 features (computed once per image; the head trains on them directly).
     """
 
     state: torch.Tensor
@@ -49,7 +50,7 @@ def collate(samples: List[Sample]) -> Batch:
     """Stack samples into a Batch."""
     if not samples:
         raise ValueError('cannot collate an empty list of samples')
-    blank = torch.zeros(INPUT_SHAPE, dtype=torch.uint8)
+    blank = torch.zeros_like(samples[0].state)
     return Batch(
         states=torch.stack([s.state for s in samples]),
         companions=torch.stack([blank if s.companion is None else s.companion
@@ -70,16 +71,20 @@ class FeedbackBuffer:
     """
     The newest ``capacity`` samples, in preallocated arrays (as SB3's buffers); thread-safe.
 
-    Each sample's images are copied in, so the memory is fixed (2 x 8.4 kB per sample, taken
-    as the ring fills) and a long run does not fragment the heap with small blocks.
+    Each sample's images (or features) are copied in, so the memory is fixed (2 x 8.4 kB per
+    sample for images, 2 x 4.5 kB for features, taken as the ring fills) and a long run does
+    not fragment the heap with small blocks.
     """
 
-    def __init__(self, capacity: int):
+    def __init__(self, capacity: int, item_shape: Tuple[int, ...] = INPUT_SHAPE,
+                 dtype=np.uint8):
+        """``item_shape``/``dtype``: images by default; (1120,) float32 for cached features."""
         if capacity < 1:
             raise ValueError('capacity must be at least 1')
         self.capacity = capacity
-        self.states = np.zeros((capacity,) + INPUT_SHAPE, np.uint8)  # pages taken when used
-        self.companions = np.zeros((capacity,) + INPUT_SHAPE, np.uint8)
+        self.item_shape = tuple(item_shape)
+        self.states = np.zeros((capacity,) + self.item_shape, dtype)  # pages taken when used
+        self.companions = np.zeros((capacity,) + self.item_shape, dtype)
         self.columns = {name: np.zeros(capacity, dtype) for name, dtype in _COLUMNS.items()}
         self._size = 0
         self._next = 0  # ring position of the next write

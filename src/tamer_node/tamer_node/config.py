@@ -23,13 +23,15 @@ class TamerConfig:
     """Credit window: the shortest delay (simulation s) between an action and feedback on it."""
     window_max_s: float = 4.0
     """Credit window: the longest delay (simulation s) between an action and feedback on it."""
-    learning_rate: float = 1e-3
-    """Adam step size of the learner."""
+    learning_rate: float = 3e-4
+    """Adam step size of the learner (1e-3 with mostly -1 feedback killed the head's units)."""
+    max_grad_norm: float = 1.0
+    """Clip each update's gradient to this global norm (0 = no clipping)."""
     batch_size: int = 32
     """Samples per minibatch update from the replay buffer."""
     buffer_capacity: int = 10000
     """Labelled samples the feedback replay buffer keeps (oldest dropped first)."""
-    update_rate_hz: float = 5.0
+    update_rate_hz: float = 6.0
     """Minibatch updates from the buffer per second of update_clock (0 = immediate only)."""
     update_clock: str = 'sim'
     """'sim': update_rate_hz per second of simulation time (observation stamps), the same
@@ -82,6 +84,7 @@ class TamerConfig:
         checks = {
             'alpha': self.alpha >= 0.0,
             'learning_rate': self.learning_rate > 0.0,
+            'max_grad_norm': self.max_grad_norm >= 0.0,
             'batch_size': self.batch_size >= 1,
             'buffer_capacity': self.buffer_capacity >= 1,
             'update_rate_hz': self.update_rate_hz >= 0.0,

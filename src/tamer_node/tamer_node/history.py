@@ -29,9 +29,16 @@ class StepRecord:
     """Preprocessed (105, 80) uint8 saliency image, if one came."""
     action: Optional[int] = None
     """The action the agent answered this step with."""
+    observation_features: Optional[torch.Tensor] = None
+    """(1120,) float32 frozen-encoder features of the observation, once computed."""
+    saliency_features: Optional[torch.Tensor] = None
+    """(1120,) float32 frozen-encoder features of the saliency image, once computed."""
 
     def image(self, kind: str) -> Optional[torch.Tensor]:
         return getattr(self, kind)
+
+    def features(self, kind: str) -> Optional[torch.Tensor]:
+        return getattr(self, f'{kind}_features')
 
 
 def other_kind(kind: str) -> str:
@@ -57,8 +64,18 @@ class StepHistory:
         with self._lock:
             record = self._record(stamp)
             setattr(record, kind, image)
+            setattr(record, f'{kind}_features', None)  # (a re-sent image: computed again)
             self._newest[kind] = max(stamp, self._newest.get(kind, stamp))
             return dataclasses.replace(record)
+
+    def put_features(self, kind: str, stamp: int, features: torch.Tensor) -> None:
+        """Cache the frozen encoder's features of a step's image (if the step is still held)."""
+        if kind not in IMAGE_KINDS:
+            raise ValueError(f'unknown image kind {kind!r}')
+        with self._lock:
+            record = self._records.get(stamp)
+            if record is not None and record.image(kind) is not None:
+                setattr(record, f'{kind}_features', features)
 
     def set_action(self, stamp: int, action: int) -> None:
         with self._lock:

@@ -10,16 +10,30 @@ import torch
 class Learner:
     """Trains an ``HModel``; one thread at a time calls ``train_step`` (see worker.py)."""
 
-    def __init__(self, model: HModel, learning_rate: float = 1e-3, alpha: float = 1e-4):
+    def __init__(self, model: HModel, learning_rate: float = 3e-4, alpha: float = 1e-4,
+                 max_grad_norm: float = 1.0):
         self.model = model
+        self.max_grad_norm = float(max_grad_norm)
+        """Clip the gradient's global norm to this before each step (0 = no clipping)."""
         self.optimizer = torch.optim.Adam(model.trainable_parameters(), lr=learning_rate)
         self.alpha = float(alpha)
         """Weight of the saliency L2 term; may be changed between steps (a ROS parameter)."""
         self.updates = 0
 
+    def predict(self, states: torch.Tensor) -> torch.Tensor:
+        """
+        H(., .) of a batch: (B, 105, 80) uint8 images, or (B, 1120) cached float features.
+
+        Cached features come from the frozen encoder (the acting path computed them): the
+        gradient then reaches the head only, which is what a frozen encoder means.
+        """
+        if states.dtype == torch.uint8:
+            return self.model(to_input(states))
+        return self.model.from_features(states)
+
     def loss(self, batch: Batch):
         """Return (loss, mse, l2) for a batch, as tensors with their graph."""
-        predictions = self.model(to_input(batch.states))             # H(s, .), (B, 18)
+        predictions = self.predict(batch.states)                      # H(s, .), (B, 18)
         judged = predictions.gather(1, batch.actions.unsqueeze(1)).squeeze(1)
         mse = (batch.weights * (judged - batch.h) ** 2).sum() / batch.weights.sum()
         rows = batch.has_companion
@@ -29,7 +43,9 @@ class Learner:
         # Eq. 4.3 over ALL 18 outputs, not only the judged action's: the saliency image tells
         # which pixels matter in this state, whatever the action, so the whole vector H(s, .)
         # should stay the same when the rest is blurred away. Mean over the rows that have one.
-        on_saliency = self.model(to_input(batch.companions[rows]))   # H(s', .), (R, 18)
+        # With a frozen encoder both sides are cached features and the gradient moves the head
+        # only; with fine_tune_encoder it flows through the encoder on both images.
+        on_saliency = self.predict(batch.companions[rows])            # H(s', .), (R, 18)
         l2 = ((predictions[rows] - on_saliency) ** 2).sum(dim=1).mean()
         return mse + self.alpha * l2, mse, l2
 
@@ -44,6 +60,8 @@ class Learner:
             return terms
         self.optimizer.zero_grad(set_to_none=True)
         loss.backward()
+        if self.max_grad_norm > 0.0:
+            torch.nn.utils.clip_grad_norm_(self.model.trainable_parameters(), self.max_grad_norm)
         self.optimizer.step()
         self.updates += 1
         return terms

@@ -29,6 +29,9 @@ FEATURE_SHAPE = (8, 14, 10)
 """Encoder output: channels x rows x columns."""
 FEATURE_SIZE = int(np.prod(FEATURE_SHAPE))
 ENCODER_FORMAT = 'tamer_node.encoder/1'
+STD_FLOOR = 0.1
+"""Smallest per-feature std used to standardize: features that hardly change in Room 1 (the
+walls) are not blown up into noise, and images unlike the pretraining frames stay bounded."""
 
 
 def preprocess(rgb: np.ndarray) -> np.ndarray:
@@ -59,9 +62,40 @@ class Encoder(nn.Module):
             nn.Conv2d(16, 16, 3, stride=2, padding=1), nn.ReLU(),  # 14x10
             nn.Conv2d(16, FEATURE_SHAPE[0], 3, padding=1),         # 8x14x10, linear code
         )
+        # Per-feature mean and std over the pretraining frames (identity until set). Not in
+        # the state dict: they travel in the encoder file (save_encoder / load_encoder).
+        self.register_buffer('feature_mean', torch.zeros(FEATURE_SHAPE), persistent=False)
+        self.register_buffer('feature_std', torch.ones(FEATURE_SHAPE), persistent=False)
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         return self.layers(x)
+
+    def standardized(self, x: torch.Tensor) -> torch.Tensor:
+        """
+        Encode (B, 1, 105, 80) into (B, 1120) features, each standardized over Room 1 frames.
+
+        Raw, every Room 1 frame has nearly the same code (the static walls dominate: per
+        feature the std over frames is 0.09 against 0.84 over all features), so a head on raw
+        features sees one point and, pushed by mostly -1 feedback, kills its ReLUs. Standardized,
+        what changes between frames (the agent, the skull) is what the head sees.
+        """
+        z = self.layers(x).flatten(1)
+        return (z - self.feature_mean.flatten()) / self.feature_std.flatten()
+
+    def set_feature_stats(self, mean: torch.Tensor, std: torch.Tensor) -> None:
+        self.feature_mean.copy_(mean.reshape(FEATURE_SHAPE))
+        self.feature_std.copy_(std.reshape(FEATURE_SHAPE).clamp_min(STD_FLOOR))
+
+    def has_feature_stats(self) -> bool:
+        return not (bool((self.feature_mean == 0).all()) and bool((self.feature_std == 1).all()))
+
+
+@torch.no_grad()
+def feature_stats(encoder: Encoder, images: np.ndarray, chunk: int = 256):
+    """Per-feature (mean, std) of the encoder's raw code over (N, 105, 80) uint8 images."""
+    codes = torch.cat([encoder(to_input(images[i:i + chunk])).flatten(1)
+                       for i in range(0, len(images), chunk)])
+    return codes.mean(0), codes.std(0)
 
 
 class Decoder(nn.Module):
@@ -104,35 +138,52 @@ class ConvAutoencoder(nn.Module):
 
 
 class HModel(nn.Module):
-    """H(s, .): the encoder's features into a small head with one output per ALE action."""
+    """
+    H(s, .): the encoder's standardized features into a small head, one output per ALE action.
+
+    Head: Linear(1120, hidden) -> LeakyReLU(0.01) -> Linear(hidden, 18). With a frozen encoder
+    the learner trains the head on cached features (``features`` once per image, then
+    ``from_features``): the same numbers as ``forward`` on the image, at a fraction of the cost.
+    """
 
     def __init__(self, hidden: int = 64, freeze_encoder: bool = True,
                  encoder: Optional[Encoder] = None):
         super().__init__()
         self.encoder = encoder if encoder is not None else Encoder()
         self.head = nn.Sequential(
-            nn.Flatten(), nn.Linear(FEATURE_SIZE, hidden), nn.ReLU(),
-            nn.Linear(hidden, NUM_ACTIONS))
+            nn.Linear(FEATURE_SIZE, hidden), nn.LeakyReLU(0.01), nn.Linear(hidden, NUM_ACTIONS))
         self.freeze_encoder = freeze_encoder
         self.encoder.requires_grad_(not freeze_encoder)
 
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
-        """(B, 1, 105, 80) float -> (B, 18) predicted feedback for every action."""
+    def features(self, x: torch.Tensor) -> torch.Tensor:
+        """(B, 1, 105, 80) float -> (B, 1120) standardized encoder features."""
         if self.freeze_encoder:
             with torch.no_grad():
-                features = self.encoder(x)
-        else:
-            features = self.encoder(x)
+                return self.encoder.standardized(x)
+        return self.encoder.standardized(x)
+
+    def from_features(self, features: torch.Tensor) -> torch.Tensor:
+        """(B, 1120) features -> (B, 18)."""
         return self.head(features)
+
+    def hidden(self, features: torch.Tensor) -> torch.Tensor:
+        """(B, 1120) features -> (B, hidden) pre-activations (to count dead units)."""
+        return self.head[0](features)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        """(B, 1, 105, 80) float -> (B, 18) predicted feedback for every action."""
+        return self.head(self.features(x))
 
     def trainable_parameters(self):
         return [p for p in self.parameters() if p.requires_grad]
 
 
 def save_encoder(encoder: Encoder, path, info: Optional[dict] = None) -> None:
-    """Write the encoder's weights with a format tag and how they were made."""
+    """Write the encoder's weights (and feature stats) with a format tag and their origin."""
     torch.save({'format': ENCODER_FORMAT, 'input_shape': list(INPUT_SHAPE),
-                'info': dict(info or {}), 'state_dict': encoder.state_dict()}, path)
+                'info': dict(info or {}), 'state_dict': encoder.state_dict(),
+                'feature_mean': encoder.feature_mean.clone(),
+                'feature_std': encoder.feature_std.clone()}, path)
 
 
 def load_encoder(path) -> Encoder:
@@ -144,4 +195,6 @@ def load_encoder(path) -> Encoder:
         raise ValueError(f'{path} was trained on {blob.get("input_shape")}, not {INPUT_SHAPE}')
     encoder = Encoder()
     encoder.load_state_dict(blob['state_dict'])
+    if 'feature_mean' in blob:  # older files have none: features are used raw
+        encoder.set_feature_stats(blob['feature_mean'], blob['feature_std'])
     return encoder

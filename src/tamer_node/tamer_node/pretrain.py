@@ -26,7 +26,8 @@ import cv2
 from env_node.core import EnvConfig, MontezumaEnv
 import numpy as np
 from tamer_node.agent import DEFAULT_ENCODER
-from tamer_node.model import ConvAutoencoder, preprocess, save_encoder, to_input
+from tamer_node.model import (
+    ConvAutoencoder, feature_stats, load_encoder, preprocess, save_encoder, to_input)
 import torch
 import torch.nn.functional as F
 
@@ -181,6 +182,8 @@ def main(argv: Optional[list] = None) -> int:
     parser.add_argument('--no-expert', action='store_true',
                         help='collect with the seeded random walk even if the expert exists')
     parser.add_argument('--out', type=Path, default=DEFAULT_ENCODER)
+    parser.add_argument('--stats-only', action='store_true',
+                        help='keep the weights in --out, only (re)compute its feature stats')
     args = parser.parse_args(argv)
     torch.set_num_threads(args.threads)
     cv2.setNumThreads(1)
@@ -188,6 +191,13 @@ def main(argv: Optional[list] = None) -> int:
     frames, policy = collect_frames(args.frames, args.seed, args.stride,
                                     args.detour_probability, use_expert=not args.no_expert,
                                     progress=True)
+    if args.stats_only:
+        encoder = load_encoder(args.out)
+        encoder.set_feature_stats(*feature_stats(encoder, build_dataset(frames, 0.0, args.seed)))
+        info = torch.load(args.out, map_location='cpu', weights_only=True)['info']
+        save_encoder(encoder, args.out, dict(info, feature_stats_frames=len(frames)))
+        print(f'feature stats of {len(frames)} frames written to {args.out}')
+        return 0
     images = build_dataset(frames, args.saliency_fraction, args.seed)
     digest = hashlib.sha256(images.tobytes()).hexdigest()[:16]
     print(f'{len(frames)} Room 1 frames ({policy}), {len(images)} training images, '
@@ -204,7 +214,9 @@ def main(argv: Optional[list] = None) -> int:
             'data_sha256': digest, 'seed': args.seed, 'epochs': args.epochs,
             'stride': args.stride, 'detour_probability': args.detour_probability,
             'saliency_fraction': args.saliency_fraction, **losses}
-    save_encoder(model.encoder, args.out, info)
+    # The head standardizes each feature by its mean and std over the Room 1 frames.
+    model.encoder.set_feature_stats(*feature_stats(model.encoder, images[:len(frames)]))
+    save_encoder(model.encoder, args.out, dict(info, feature_stats_frames=len(frames)))
     print(f'encoder weights written to {args.out} ({args.out.stat().st_size / 1024:.0f} kB)')
     return 0
 

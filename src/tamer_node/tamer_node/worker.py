@@ -7,8 +7,10 @@ Four kinds of thread touch the agent; each owns its objects and hands over throu
 
 - Acting (the ``observation``/``saliency`` callbacks, or a benchmark loop): preprocesses the
   image, stores the step in the ``StepHistory``, picks the greedy action with its *own* copy of H
-  (``ActingModel``, in eval mode for its whole life), queues journal records. It takes only short
-  locks (history, snapshot slot) and never waits for training, sampling or disk I/O.
+  (``ActingModel``, in eval mode for its whole life), queues journal records. With a frozen
+  encoder it stores the image's features in the step's record (the learner trains on them).
+  It takes only short locks (history, snapshot slot) and never waits for training, sampling or
+  disk I/O.
 - Feedback (the ``feedback*`` callbacks): numbers the feedback and queues it to the disk
   thread, which drains the step journal, appends the feedback to ``feedback_log.jsonl``
   (flushed) and only then puts it in the learner's inbox: what the learner uses is on disk, in
@@ -57,12 +59,12 @@ from tamer_node.config import TamerConfig
 from tamer_node.credit import step_credit, window_credit
 from tamer_node.history import IMAGE_KINDS, other_kind, StepHistory
 from tamer_node.learner import Learner
-from tamer_node.model import HModel, INPUT_SHAPE, to_input
+from tamer_node.model import HModel, to_input
 from tamer_node.persistence import DiskWriter, KIND_NAMES, save_checkpoint, StepJournal
 from tamer_node.schedule import UpdateSchedule
 import torch
 
-CHECKPOINT_FORMAT = 'tamer_node.checkpoint/1'
+CHECKPOINT_FORMAT = 'tamer_node.checkpoint/2'  # /2: standardized features, LeakyReLU head
 
 COUNTERS = (
     'feedback/count', 'feedback/duplicates', 'feedback/invalid', 'feedback/unmatched',
@@ -133,6 +135,16 @@ class ActingModel:
     def greedy(self, image: torch.Tensor) -> int:
         """argmax_a H(s, a): the thesis's greedy policy (ties: the lowest action index)."""
         return int(torch.argmax(self.predict(image)))
+
+    def features(self, image: torch.Tensor) -> torch.Tensor:
+        """Return the (1120,) encoder features of a (105, 80) uint8 image (no_grad)."""
+        with torch.no_grad():
+            return self.model.features(to_input(image))[0]
+
+    def greedy_on_features(self, features: torch.Tensor) -> int:
+        """``greedy`` from the image's features (``features``): the same action."""
+        with torch.no_grad():
+            return int(torch.argmax(self.model.from_features(features.unsqueeze(0))[0]))
 
 
 class LearnerWorker(threading.Thread):
@@ -317,7 +329,8 @@ class LearnerWorker(threading.Thread):
                 record = history.get(stamp)
                 if record is None or record.image(kind) is None:
                     continue  # evicted meanwhile, or never had the image acted on
-                state, companion = record.image(kind), record.image(other_kind(kind))
+                state = self._item(record, kind, history)
+                companion = self._item(record, other_kind(kind), history)
                 counts['pairing/with_saliency' if companion is not None
                        else 'pairing/without_saliency'] += 1
                 samples.append(Sample(state, companion, record.action, float(event.h),
@@ -343,6 +356,23 @@ class LearnerWorker(threading.Thread):
             self.counters.update(counts)
         self.applied_seq = max(self.applied_seq, event.seq)
         return samples
+
+    def _item(self, record, kind: str, history: StepHistory) -> Optional[torch.Tensor]:
+        """
+        Return what the buffer keeps of a step's ``kind`` image: the image, or its features.
+
+        With a frozen encoder: the features the actor cached when it acted, else (the saliency
+        companion, a resumed step) computed here once and cached in the history.
+        """
+        image = record.image(kind)
+        if image is None or not self.learner.model.freeze_encoder:
+            return image
+        features = record.features(kind)
+        if features is None:
+            with torch.no_grad():
+                features = self.learner.model.features(to_input(image))[0]
+            history.put_features(kind, record.stamp, features)
+        return features
 
     def _update(self, batch, immediate: bool) -> None:
         losses = self.learner.train_step(batch)
@@ -445,16 +475,16 @@ class LearnerWorker(threading.Thread):
             if image is None or (has and companion is None):
                 continue
             keep.append(row)
-            states.append(image)
+            states.append(self._item(record, kind, steps))
             if has:
-                companions.append(companion)
+                companions.append(self._item(record, other_kind(kind), steps))
         missing = len(columns['stamps']) - len(keep)
         if missing:
             with self._lock:
                 self.counters['resume/samples_without_images'] += missing
             self._log('warn', f'{missing} buffer sample(s) lost: their steps are not in the '
                       'journal any more')
-        empty = torch.zeros((0,) + INPUT_SHAPE, dtype=torch.uint8)
+        empty = torch.from_numpy(self.buffer.states[:0].copy())
         return {
             'capacity': state['capacity'], 'added': state['added'],
             'columns': {name: torch.from_numpy(values[keep]) for name, values in columns.items()},
