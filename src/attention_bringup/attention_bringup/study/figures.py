@@ -62,17 +62,10 @@ def plot_reach(analysis: Mapping, conditions: Sequence[str], positions: Sequence
         axis.set_ylim(-0.02, 1.02)
         axis.set_xlim(0, analysis['budget'])
         axis.grid(alpha=0.3)
-    for axis in axes[:, 0]:
-        axis.set_ylabel('fraction of trials reached')
-    for axis in list(axes.flat)[len(positions):]:
-        axis.set_visible(False)
-    axes.flat[0].legend(loc='upper left', fontsize='small')
     note = ('shaded: Wilson 95 % interval over trials' if bands else
             'intervals per condition in reach_by_condition.png')
-    figure.suptitle(f'Progress to critical positions: {title}\n({note})', fontsize='medium')
-    figure.tight_layout()
-    figure.savefig(path, dpi=100)
-    plt.close(figure)
+    _finish_panels(plt, figure, axes, len(positions),
+                   f'Progress to critical positions: {title}\n({note})', path)
     return True
 
 
@@ -102,17 +95,23 @@ def plot_by_condition(analysis: Mapping, conditions: Sequence[str], path: Path) 
         axis.set_ylim(-0.02, 1.02)
         axis.set_xlim(0, analysis['budget'])
         axis.grid(alpha=0.3)
+    _finish_panels(plt, figure, axes, len(present),
+                   'Progress to each critical position, per condition '
+                   '(shaded: Wilson 95 % interval over trials)', path)
+    return True
+
+
+def _finish_panels(plt, figure, axes, used: int, title: str, path: Path) -> None:
+    """Label a grid of reach panels, hide the unused ones, and save and close the figure."""
     for axis in axes[:, 0]:
         axis.set_ylabel('fraction of trials reached')
-    for axis in list(axes.flat)[len(present):]:
+    for axis in list(axes.flat)[used:]:
         axis.set_visible(False)
     axes.flat[0].legend(loc='upper left', fontsize='small')
-    figure.suptitle('Progress to each critical position, per condition '
-                    '(shaded: Wilson 95 % interval over trials)', fontsize='medium')
+    figure.suptitle(title, fontsize='medium')
     figure.tight_layout()
     figure.savefig(path, dpi=100)
     plt.close(figure)
-    return True
 
 
 def plot_furthest(analysis: Mapping, conditions: Sequence[str], path: Path) -> bool:
