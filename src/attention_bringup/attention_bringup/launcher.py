@@ -149,28 +149,29 @@ class Launcher:
         then). Real time: the env steps on its timer from the start, so the other three go
         first and env_node starts once they listen.
         """
-        commands = {command.name: command for command in self.plan.commands}
-        env_command = commands.pop('env_node')
+        env = [c for c in self.plan.commands if c.name == 'env_node']
+        learners = [c for c in self.plan.commands if c.name != 'env_node']
         if self.plan.options.realtime:
-            for command in commands.values():
-                group.start(command)
-            self._write_pids(group)
+            self._start(group, learners)
             failure = self._wait_for(group, monitor.learners_listen, STARTUP_TIMEOUT_S,
                                      'feedback_node, saliency_node and tamer_node do not listen')
             if failure:
                 return failure
-        group.start(env_command)
-        self._write_pids(group)
+        self._start(group, env)
         failure = self._wait_for(group, monitor.hears_env, ENV_MATCH_TIMEOUT_S,
                                  'the launcher does not hear env_node')
         if failure:
             return failure
         monitor.watch_images()
         if not self.plan.options.realtime:
-            for command in commands.values():
-                group.start(command)
-            self._write_pids(group)
+            self._start(group, learners)
         return None, None
+
+    def _start(self, group: NodeGroup, commands) -> None:
+        """Start ``commands`` and rewrite pids.json with every node started so far."""
+        for command in commands:
+            group.start(command)
+        self._write_pids(group)
 
     def _wait_for(self, group: NodeGroup, ready, timeout_s: float, what: str):
         """Wait until ``ready()``; return None, or (status, node) on a death or a timeout."""
@@ -325,6 +326,8 @@ class Launcher:
         return EXIT_INTERRUPTED if status == 'interrupted' else 1
 
     def _exit_text(self, status, failed, exit_codes, group) -> str:
+        if status == 'completed':
+            return 'all 4 nodes exited cleanly'
         parts = []
         for node in group.nodes:
             code = exit_codes.get(node.name)
@@ -334,8 +337,6 @@ class Launcher:
             elif len(node.stopped_with) > 1:
                 text += f' (needed {node.stopped_with[-1]})'
             parts.append(text)
-        if status == 'completed':
-            return 'all 4 nodes exited cleanly'
         return '; '.join(parts)
 
     def _summary(self, status, failed, exit_codes, exit_text, group, monitor, rss, queried):

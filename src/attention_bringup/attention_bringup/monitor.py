@@ -196,7 +196,7 @@ class GraphMonitor(Node):
                 if kind == OBSERVATION:
                     self._observed_at[stamp] = now
                     if len(self._observed_at) > 256:
-                        oldest = min(self._observed_at)
+                        oldest = next(iter(self._observed_at))  # stamps arrive in order
                         del self._observed_at[oldest]
                         self._answered.discard(oldest)
                 self.gallery.on_image(kind, stamp, raw)

@@ -29,8 +29,9 @@ class ProgressWriter:
         self.written = 0
 
     def write_new(self, rows: Sequence[dict]) -> None:
-        for row in rows[self.written:]:
-            self._writer.writerow(row)
+        if len(rows) == self.written:
+            return
+        self._writer.writerows(rows[self.written:])
         self.written = len(rows)
         self._file.flush()
 

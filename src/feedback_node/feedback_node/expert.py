@@ -26,7 +26,7 @@ import numpy as np
 A = {name: index for index, name in enumerate(ACTION_MEANINGS)}
 NOOP, FIRE, UP, RIGHT, LEFT, DOWN = A['NOOP'], A['FIRE'], A['UP'], A['RIGHT'], A['LEFT'], A['DOWN']
 RIGHTFIRE, LEFTFIRE = A['RIGHTFIRE'], A['LEFTFIRE']
-_RELEASE = {FIRE: NOOP, RIGHTFIRE: NOOP, LEFTFIRE: NOOP}
+_FIRE_ACTIONS = frozenset((FIRE, RIGHTFIRE, LEFTFIRE))
 
 # Floors (RAM y grows upward).
 TOP_Y, PLATFORM_Y, FLOOR_Y = 235, 192, 148
@@ -154,8 +154,8 @@ class RoomOneExpert:
         skull = self.skull.update(skull_x)
         self.phase = phase_of(state)
         action = self._action(self.phase, int(state.x), int(state.y), skull)
-        if self._last_action in _RELEASE and action in _RELEASE:
-            action = _RELEASE[action]  # fire acts on a press: let go for one step first
+        if self._last_action in _FIRE_ACTIONS and action in _FIRE_ACTIONS:
+            action = NOOP  # fire acts on a press: let go for one step first
         self._last_action = action
         return action
 
@@ -206,10 +206,6 @@ def _walk_toward(x: int, target: int, then: int, snap: int) -> int:
     return RIGHT if x < target else LEFT
 
 
-def _near(value: int, target: int, tolerance: int = LADDER_SNAP) -> bool:
-    return abs(value - target) <= tolerance
-
-
 def phase_of(state) -> Phase:
     """Name the stage of the route that the agent's position belongs to."""
     x, y = int(state.x), int(state.y)
@@ -229,11 +225,11 @@ def phase_of(state) -> Phase:
         return Phase.AIRBORNE
     if y == FLOOR_Y:
         return Phase.ACROSS_FLOOR
-    if PLATFORM_Y < y < TOP_Y and _near(x, MIDDLE_LADDER_X, 0):
+    if PLATFORM_Y < y < TOP_Y and x == MIDDLE_LADDER_X:
         return Phase.DOWN_MIDDLE_LADDER
     if FLOOR_Y < y < PLATFORM_Y:
-        if _near(x, RIGHT_LADDER_X, 0):
+        if x == RIGHT_LADDER_X:
             return Phase.DOWN_RIGHT_LADDER
-        if _near(x, LEFT_LADDER_X, 0):
+        if x == LEFT_LADDER_X:
             return Phase.UP_LEFT_LADDER
     return Phase.AIRBORNE

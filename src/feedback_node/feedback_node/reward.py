@@ -14,11 +14,10 @@ Two variants of "a critical position":
 """
 
 from dataclasses import dataclass
-import math
 from typing import NamedTuple, Optional, Tuple
 
 from feedback_node.critical_positions import (
-    critical_position_at, CRITICAL_POSITIONS, distance, nearest_critical_position)
+    CRITICAL_POSITIONS, distance, nearest_critical_position, OUTSIDE)
 
 VARIANTS = ('nearest', 'progress')
 
@@ -71,6 +70,8 @@ class Judgement(NamedTuple):
     distance: float
     stationary: bool
     """True when h is -1 because the agent stood still too long."""
+    teleported: bool = False
+    """The agent moved further than ``TELEPORT_DISTANCE`` since the last step (a respawn)."""
 
 
 class RewardFunction:
@@ -90,20 +91,23 @@ class RewardFunction:
         """Judge the agent standing at (x, y) this step."""
         config = self.config
         here = (float(x), float(y))
-        if self._last is not None and distance(*here, self._last) > TELEPORT_DISTANCE:
+        teleported = (self._last is not None
+                      and distance(*here, self._last) > TELEPORT_DISTANCE)
+        if teleported:
             self.furthest = -1
         self._still_steps = self._still_steps + 1 if here == self._last else 0
         self._last = here
+        nearest, nearest_d = nearest_critical_position(*here)
+        position = nearest if nearest_d < config.alpha_threshold else OUTSIDE
         if config.reward_variant == 'progress':
             target, d = self._progress_target(*here)
         else:
-            target, d = nearest_critical_position(*here)
-        position = critical_position_at(*here, radius=config.alpha_threshold)
+            target, d = nearest, nearest_d
         stationary = self._still_steps > config.stationary_steps
         h = (-1 if stationary
              else threshold_reward(d, config.alpha_threshold, config.beta_threshold))
         return Judgement(h=h, position=position, target=target, distance=d,
-                         stationary=stationary)
+                         stationary=stationary, teleported=teleported)
 
     def _progress_target(self, x: float, y: float) -> Tuple[int, float]:
         candidates = [i for i in (self.furthest, self.furthest + 1)
@@ -113,8 +117,3 @@ class RewardFunction:
         if target > self.furthest and distances[target] < self.config.alpha_threshold:
             self.furthest = target
         return target, distances[target]
-
-
-def is_finite_position(x: float, y: float) -> bool:
-    """Whether (x, y) can be judged at all."""
-    return math.isfinite(x) and math.isfinite(y)

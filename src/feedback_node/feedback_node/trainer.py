@@ -21,8 +21,7 @@ import heapq
 from typing import List, NamedTuple, Optional, Tuple
 
 from attention_common.stamps import NS_PER_S
-from feedback_node.critical_positions import distance
-from feedback_node.reward import RewardConfig, RewardFunction, TELEPORT_DISTANCE
+from feedback_node.reward import RewardConfig, RewardFunction
 from feedback_node.utterances import Utterance, UtteranceGenerator
 import numpy as np
 
@@ -113,30 +112,29 @@ class SyntheticTrainer:
         """Forget the trial so far (pending delayed feedback too)."""
         self.reward.reset()
         self.utterances.reset()
-        self._last: Optional[Tuple[int, float, float]] = None
+        self._last_ns: Optional[int] = None
         self._pending: List[Tuple[int, int, Feedback]] = []
         self._sequence = 0
 
     def on_position(self, stamp_ns: int, x: float, y: float) -> TrainerOutput:
         """Take the agent's position at step ``stamp_ns``; return what to publish now."""
-        if self._last is not None and stamp_ns == self._last[0]:
+        if self._last_ns is not None and stamp_ns == self._last_ns:
             self.counts['duplicates'] += 1  # the same step again (a re-send): already judged
             return TrainerOutput(feedback=self._release(stamp_ns), utterance=None)
-        if self._last is not None and stamp_ns < self._last[0]:
+        if self._last_ns is not None and stamp_ns < self._last_ns:
             self.counts['restarts'] += 1  # stamps went back: a new trial started
             self.reset()
         self.counts['positions'] += 1
         judgement = self.reward(x, y)
-        if self._last is not None:
-            last_stamp, last_x, last_y = self._last
-            if distance(x, y, (last_x, last_y)) > TELEPORT_DISTANCE:
+        if self._last_ns is not None:
+            if judgement.teleported:
                 self.counts['unjudged_jumps'] += 1
             else:
                 self.counts['judged'] += 1
-                self._consider(Feedback(stamp_ns=last_stamp, h=float(judgement.h),
+                self._consider(Feedback(stamp_ns=self._last_ns, h=float(judgement.h),
                                         position=judgement.position,
                                         distance=judgement.distance, seen_ns=stamp_ns))
-        self._last = (stamp_ns, float(x), float(y))
+        self._last_ns = stamp_ns
         return TrainerOutput(feedback=self._release(stamp_ns),
                              utterance=self.utterances.observe(x, y, stamp_ns))
 

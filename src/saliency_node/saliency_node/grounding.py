@@ -49,8 +49,6 @@ class Grounding(NamedTuple):
     """Selected object names (manifest order), the agent always among them."""
     named: Tuple[str, ...]
     """Objects the words named (may be empty: then only the agent is selected)."""
-    words: Tuple[str, ...]
-    """The utterance's stems, for logs."""
 
 
 class Grounder:
@@ -82,5 +80,4 @@ class Grounder:
         named = set(self._named(stems))
         selected = named | {self.agent}
         return Grounding(objects=tuple(n for n in self.order if n in selected),
-                         named=tuple(n for n in self.order if n in named),
-                         words=tuple(stems))
+                         named=tuple(n for n in self.order if n in named))

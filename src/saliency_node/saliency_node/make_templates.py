@@ -44,14 +44,18 @@ def render_route(manifest: Manifest) -> Iterator[np.ndarray]:
         env.close()
 
 
-def sprite_box(frame: np.ndarray, colors, area) -> Tuple[int, int, int, int]:
-    """Bounding box ``(x, y, w, h)`` of the pixels of ``colors`` inside ``area``."""
-    x, y, w, h = area
-    patch = frame[y:y + h, x:x + w]
+def color_pixels(patch: np.ndarray, colors) -> np.ndarray:
+    """Boolean mask of the pixels of ``patch`` that have one of ``colors``."""
     keep = np.zeros(patch.shape[:2], dtype=bool)
     for color in colors:
         keep |= np.all(patch == color, axis=2)
-    ys, xs = np.nonzero(keep)
+    return keep
+
+
+def sprite_box(frame: np.ndarray, colors, area) -> Tuple[int, int, int, int]:
+    """Bounding box ``(x, y, w, h)`` of the pixels of ``colors`` inside ``area``."""
+    x, y, w, h = area
+    ys, xs = np.nonzero(color_pixels(frame[y:y + h, x:x + w], colors))
     if len(ys) == 0:
         return (0, 0, 0, 0)
     return (x + int(xs.min()), y + int(ys.min()),
@@ -69,10 +73,7 @@ def cut_template(frame: np.ndarray, spec: ObjectSpec, box, manifest: Manifest) -
     if w == 0:
         raise ManifestError(f'{spec.name}: none of its colours inside {box or "the region"}')
     patch = frame[y:y + h, x:x + w].copy()
-    keep = np.zeros(patch.shape[:2], dtype=bool)
-    for color in spec.colors:
-        keep |= np.all(patch == color, axis=2)
-    patch[~keep] = manifest.background
+    patch[~color_pixels(patch, spec.colors)] = manifest.background
     return patch
 
 

@@ -75,13 +75,6 @@ class Manifest:
     """RGB colour of empty space: template pixels of this colour are not part of a mask."""
     objects: Tuple[ObjectSpec, ...]
 
-    def spec(self, name: str) -> ObjectSpec:
-        """Return the object called ``name``."""
-        for spec in self.objects:
-            if spec.name == name:
-                return spec
-        raise KeyError(name)
-
     @property
     def agent(self) -> ObjectSpec:
         return next(spec for spec in self.objects if spec.agent)

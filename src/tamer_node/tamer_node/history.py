@@ -87,11 +87,6 @@ class StepHistory:
             record = self._records.get(stamp)
             return None if record is None else dataclasses.replace(record)
 
-    def newest(self, kind: str) -> Optional[int]:
-        """Return the newest stamp an image of ``kind`` came with, or None."""
-        with self._lock:
-            return self._newest.get(kind)
-
     def settled(self, stamp: int, kind: str) -> bool:
         """
         Tell whether step ``stamp`` has its ``kind`` image or never will get it.

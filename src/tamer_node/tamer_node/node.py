@@ -19,10 +19,11 @@ from attention_common import qos, topics
 from attention_common.image_codec import image_to_numpy, ImageFormatError
 from attention_common.joy_actions import action_to_joy
 from attention_common.node_main import run_node, StartupError
+from attention_common.parameters import declare_parameters
 from attention_common.stamps import ns_to_stamp, stamp_to_ns
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Vector3Stamped
-from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 from sensor_msgs.msg import Image, Joy
 from std_msgs.msg import Float32, Header, String
@@ -75,20 +76,10 @@ class TamerNode(Node):
     # Parameters.
     def _declare_config(self) -> TamerConfig:
         docs = field_docs()
-        values = {}
-        for field in dataclasses.fields(TamerConfig):
-            default = field.default
-            # Floats accept integers too (alpha:=0 must work from the command line).
-            descriptor = ParameterDescriptor(description=docs[field.name],
-                                             dynamic_typing=isinstance(default, float))
-            value = self.declare_parameter(field.name, default, descriptor).value
-            if isinstance(default, float):
-                try:
-                    value = float(value)
-                except (TypeError, ValueError):
-                    raise StartupError(f'tamer_node: parameter {field.name} must be a number, '
-                                       f'got {value!r}')
-            values[field.name] = value
+        specs = {field.name: (field.default, docs[field.name])
+                 for field in dataclasses.fields(TamerConfig)}
+        # Floats accept integers too (alpha:=0 must work from the command line).
+        values = declare_parameters(self, specs, runtime=RUNTIME_PARAMETERS)
         config = TamerConfig(**values)
         try:
             config.validate()

@@ -6,7 +6,7 @@ furthest position had reached the position by each step, with Wilson 95 % bands 
 """
 
 from pathlib import Path
-from typing import Dict, Mapping, Sequence
+from typing import Dict, List, Mapping, Sequence
 
 # Colours as in the thesis where it names them: vanilla blue, blind_obs red, language orange,
 # blind-agent saliency green.
@@ -34,18 +34,37 @@ def _pyplot():
     return plt
 
 
+def _present(analysis: Mapping, conditions: Sequence[str]) -> List[str]:
+    """Return the conditions that have at least one usable trial, in the given order."""
+    return [c for c in conditions if c in analysis['conditions']
+            and analysis['conditions'][c]['usable'] > 0]
+
+
+def _panel_grid(plt, panels: int):
+    """Return (figure, axes) of a grid of up to three columns with room for ``panels``."""
+    columns = min(3, panels)
+    rows = (panels + columns - 1) // columns
+    return plt.subplots(rows, columns, figsize=(4.2 * columns, 3.3 * rows),
+                        sharey=True, squeeze=False)
+
+
+def _style_panel(axis, title: str, budget: int) -> None:
+    """Title, x label, limits and grid of one reach panel."""
+    axis.set_title(title, fontsize='medium')
+    axis.set_xlabel('agent step')
+    axis.set_ylim(-0.02, 1.02)
+    axis.set_xlim(0, budget)
+    axis.grid(alpha=0.3)
+
+
 def plot_reach(analysis: Mapping, conditions: Sequence[str], positions: Sequence[int],
                title: str, path: Path) -> bool:
     """One panel per position: fraction of trials that progressed to it by step t."""
-    present = [c for c in conditions if c in analysis['conditions']
-               and analysis['conditions'][c]['usable'] > 0]
+    present = _present(analysis, conditions)
     if not present:
         return False
     plt = _pyplot()
-    columns = min(3, len(positions))
-    rows = (len(positions) + columns - 1) // columns
-    figure, axes = plt.subplots(rows, columns, figsize=(4.2 * columns, 3.3 * rows),
-                                sharey=True, squeeze=False)
+    figure, axes = _panel_grid(plt, len(positions))
     bands = len(present) <= 3  # more overlapping bands hide the curves (see plot_by_condition)
     for axis, position in zip(axes.flat, positions):
         for condition in present:
@@ -57,11 +76,7 @@ def plot_reach(analysis: Mapping, conditions: Sequence[str], positions: Sequence
             if bands:
                 axis.fill_between(curve['steps'], curve['ci_low'], curve['ci_high'],
                                   step='post', color=colour, alpha=0.25, linewidth=0)
-        axis.set_title(f'critical position {position}', fontsize='medium')
-        axis.set_xlabel('agent step')
-        axis.set_ylim(-0.02, 1.02)
-        axis.set_xlim(0, analysis['budget'])
-        axis.grid(alpha=0.3)
+        _style_panel(axis, f'critical position {position}', analysis['budget'])
     note = ('shaded: Wilson 95 % interval over trials' if bands else
             'intervals per condition in reach_by_condition.png')
     _finish_panels(plt, figure, axes, len(positions),
@@ -71,15 +86,11 @@ def plot_reach(analysis: Mapping, conditions: Sequence[str], positions: Sequence
 
 def plot_by_condition(analysis: Mapping, conditions: Sequence[str], path: Path) -> bool:
     """One panel per condition: progress to every position 0..5, with Wilson 95 % bands."""
-    present = [c for c in conditions if c in analysis['conditions']
-               and analysis['conditions'][c]['usable'] > 0]
+    present = _present(analysis, conditions)
     if not present:
         return False
     plt = _pyplot()
-    columns = min(3, len(present))
-    rows = (len(present) + columns - 1) // columns
-    figure, axes = plt.subplots(rows, columns, figsize=(4.2 * columns, 3.3 * rows),
-                                sharey=True, squeeze=False)
+    figure, axes = _panel_grid(plt, len(present))
     colours = plt.get_cmap('viridis')
     for axis, condition in zip(axes.flat, present):
         curves = analysis['conditions'][condition]['reach_curves']
@@ -90,11 +101,7 @@ def plot_by_condition(analysis: Mapping, conditions: Sequence[str], path: Path) 
                       label=f'position {position}')
             axis.fill_between(curve['steps'], curve['ci_low'], curve['ci_high'], step='post',
                               color=colour, alpha=0.12, linewidth=0)
-        axis.set_title(f'{condition} (n={curves["0"]["n"]})', fontsize='medium')
-        axis.set_xlabel('agent step')
-        axis.set_ylim(-0.02, 1.02)
-        axis.set_xlim(0, analysis['budget'])
-        axis.grid(alpha=0.3)
+        _style_panel(axis, f'{condition} (n={curves["0"]["n"]})', analysis['budget'])
     _finish_panels(plt, figure, axes, len(present),
                    'Progress to each critical position, per condition '
                    '(shaded: Wilson 95 % interval over trials)', path)
@@ -116,8 +123,7 @@ def _finish_panels(plt, figure, axes, used: int, title: str, path: Path) -> None
 
 def plot_furthest(analysis: Mapping, conditions: Sequence[str], path: Path) -> bool:
     """Mean furthest critical position over steps, with t-based 95 % bands."""
-    present = [c for c in conditions if c in analysis['conditions']
-               and analysis['conditions'][c]['usable'] > 0]
+    present = _present(analysis, conditions)
     if not present:
         return False
     plt = _pyplot()

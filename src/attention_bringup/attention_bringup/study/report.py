@@ -11,7 +11,7 @@ from typing import Mapping, Optional, Sequence
 
 from attention_bringup.study import discussion, stats
 from attention_bringup.study.analysis import BASELINE, MEASURES
-from attention_bringup.study.discussion import fmt_p
+from attention_bringup.study.discussion import _num, fmt_p
 from attention_bringup.study.trials import POSITIONS
 
 CONDITION_TEXT = {
@@ -60,10 +60,6 @@ def _proportion(proportion: Mapping) -> str:
         return 'n/a'
     return (f'{proportion["k"]}/{proportion["n"]} '
             f'({100 * proportion["ci_low"]:.0f}–{100 * proportion["ci_high"]:.0f} %)')
-
-
-def _num(value: Optional[float], digits: int = 2) -> str:
-    return 'n/a' if value is None else f'{value:.{digits}f}'
 
 
 def _duration(seconds: float) -> str:

@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Dict, List, Mapping, Optional, Sequence
 
 from attention_bringup.params import load_params_file, node_params, ParamsFileError
+from attention_bringup.report import PARAMS_FILE, PROGRESS_FILE, SUMMARY_FILE
 
 FORMAT = 1
 """Version of the result file layout."""
@@ -183,8 +184,8 @@ def build_record(condition: str, seed: int, budget: int, run_dir: Path,
                  started_at: str = '', parallel: int = 1) -> dict:
     """Summarize one finished (or failed) trial's run folder as a result-file dict."""
     run_dir = Path(run_dir)
-    summary = read_json(run_dir / 'summary.json')
-    rows = read_progress(run_dir / 'progress.csv')
+    summary = read_json(run_dir / SUMMARY_FILE)
+    rows = read_progress(run_dir / PROGRESS_FILE)
     steps = rows[-1]['agent_step'] if rows else 0
     outcome = outcome_of(summary, steps, budget, exit_code, timed_out)
     first = first_visits(rows)
@@ -214,7 +215,7 @@ def build_record(condition: str, seed: int, budget: int, run_dir: Path,
         'utterance_count': summary.get('utterance_count'),
         'saliency_count': summary.get('message_counts', {}).get('saliency'),
         'learner_updates': summary.get('metrics', {}).get('train/updates'),
-        'parameters': recorded_parameters(run_dir / 'params.yaml'),
+        'parameters': recorded_parameters(run_dir / PARAMS_FILE),
         'curve_every': CURVE_EVERY,
         'furthest_curve': furthest_curve(rows, budget),
         'run_dir': display_path(run_dir),
