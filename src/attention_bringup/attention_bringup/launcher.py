@@ -93,7 +93,7 @@ class Launcher:
         from rclpy.executors import SingleThreadedExecutor
         from rclpy.signals import SignalHandlerOptions
 
-        from attention_bringup.monitor import GraphMonitor
+        from attention_bringup.monitor import GraphMonitor, spin_until_shutdown
         from feedback_node.critical_positions import critical_position_at
 
         apply_to_this_process(self.domain_id)
@@ -105,7 +105,8 @@ class Launcher:
                                context=context)
         executor = SingleThreadedExecutor(context=context)
         executor.add_node(monitor)
-        spinner = threading.Thread(target=self._spin, args=(executor,), daemon=True)
+        spinner = threading.Thread(target=spin_until_shutdown,
+                                   args=(executor, context, self.err), daemon=True)
         spinner.start()
         writer = report.ProgressWriter(self.plan.run_dir / report.PROGRESS_FILE)
         group = NodeGroup(self._node_environ())
@@ -195,12 +196,6 @@ class Launcher:
                           {'attention_train': os.getpid(), 'domain_id': self.domain_id,
                            **group.pids()})
 
-    @staticmethod
-    def _spin(executor) -> None:
-        try:
-            executor.spin()
-        except Exception:  # the context shut down while spinning
-            pass
 
     def _watch(self, group: NodeGroup, monitor, writer):
         """Wait for the end of the budget, a dead node, a stall or Ctrl-C."""
@@ -223,7 +218,6 @@ class Launcher:
                                  tracker.furthest, tracker.latest.get('episode'),
                                  tracker.latest.get('lives'))
                 started = bool(tracker.rows)
-            monitor.follow_gallery()
             now = time.monotonic()
             if finished:
                 self._show(bar)

@@ -7,10 +7,15 @@ launcher's executor a few hundred microseconds): images are subscribed raw and b
 lost image only costs a count), ``saliency_mask`` only while the gallery takes a sample, and the
 plain ``feedback`` / ``utterance`` only when a person trains (the synthetic trainer's stamped
 companions carry the same).
+
+Subscriptions change only on the executor's own thread (a timer), never from the launcher's main
+thread: destroying a subscription while another thread spins the executor can hang that
+executor for good (seen as a "stall" at the gallery's first sample).
 """
 
 import threading
 import time
+import traceback
 from typing import Dict, List, Optional
 
 from attention_bringup.gallery import (
@@ -31,6 +36,9 @@ WATCH_IMAGES = QoSProfile(depth=10, reliability=ReliabilityPolicy.BEST_EFFORT)
 WATCH_STEPS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE,
                          durability=DurabilityPolicy.VOLATILE)
 """Reliable like the publishers, with a deep queue: a busy launcher falls behind, loses nothing."""
+
+SUBSCRIPTION_PERIOD_S = 0.1
+"""How often the monitor's timer adds or removes the image subscriptions."""
 
 COUNTED_TOPICS = (
     topics.OBSERVATION, topics.ACTION, topics.AGENT_POSITION, topics.ENV_STATUS,
@@ -74,29 +82,31 @@ class GraphMonitor(Node):
             sub(String, topics.UTTERANCE, self._on_utterance, WATCH_STEPS)
         sub(DiagnosticArray, topics.METRICS, self._on_metrics, qos.METRICS)
         sub(Joy, topics.ACTION, self._on_action, WATCH_STEPS)
+        self._images_wanted = threading.Event()
         self._watching_images = False
         self._mask_subscription = None
+        self.create_timer(SUBSCRIPTION_PERIOD_S, self._manage_subscriptions)
 
     def watch_images(self) -> None:
         """
-        Subscribe to the images (call once env_node is heard).
+        Ask for the image subscriptions (call once env_node is heard; any thread).
 
-        env_node publishes its first step as soon as anyone subscribes to ``observation``; the
-        launcher subscribes only after it is matched with the step data, so it sees step one.
+        env_node publishes its first step only when the launcher, too, subscribes to
+        ``observation`` (its wait counts include the launcher), so the launcher sees step one.
         """
-        if self._watching_images:
-            return
-        self._watching_images = True
-        for topic, kind in ((topics.OBSERVATION, OBSERVATION), (topics.SALIENCY, SALIENCY)):
-            self.create_subscription(Image, topic, self._image_callback(topic, kind),
-                                     WATCH_IMAGES, raw=True)
+        self._images_wanted.set()
 
-    def follow_gallery(self) -> None:
+    def _manage_subscriptions(self) -> None:
         """
-        Subscribe to ``saliency_mask`` while the gallery waits for a sample, not otherwise.
-
-        (saliency_node renders masks only while someone subscribes.) Call from the main thread.
+        Timer, on the executor's thread: subscribe to the images once asked, and to
+        ``saliency_mask`` only while the gallery waits for a sample (saliency_node renders masks
+        only while someone subscribes).
         """
+        if self._images_wanted.is_set() and not self._watching_images:
+            self._watching_images = True
+            for topic, kind in ((topics.OBSERVATION, OBSERVATION), (topics.SALIENCY, SALIENCY)):
+                self.create_subscription(Image, topic, self._image_callback(topic, kind),
+                                         WATCH_IMAGES, raw=True)
         with self.lock:
             waiting = self.gallery.waiting and not self.gallery.full
         if waiting and self._watching_images and self._mask_subscription is None:
@@ -247,3 +257,27 @@ class GraphMonitor(Node):
         while not future.done() and time.monotonic() < deadline:
             time.sleep(0.01)
         return future.result() if future.done() else None
+
+
+def spin_until_shutdown(executor, context, err) -> int:
+    """
+    Spin ``executor`` until ``context`` shuts down; return how many callbacks raised.
+
+    A callback that raises is reported on ``err`` with its traceback and the spinning goes on:
+    a silent death of this thread would look like a stalled graph.
+    """
+    from rclpy.executors import ExternalShutdownException, ShutdownException
+    errors = 0
+    while context.ok():
+        try:
+            executor.spin_once(timeout_sec=0.2)
+        except (ExternalShutdownException, ShutdownException):
+            break
+        except Exception:  # noqa: B902 - any callback error is reported, then spinning goes on
+            if not context.ok():
+                break
+            errors += 1
+            err.write('attention_train: a callback of its monitor failed (the run goes on):\n'
+                      + traceback.format_exc())
+            err.flush()
+    return errors
