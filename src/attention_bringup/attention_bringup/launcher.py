@@ -196,7 +196,6 @@ class Launcher:
                           {'attention_train': os.getpid(), 'domain_id': self.domain_id,
                            **group.pids()})
 
-
     def _watch(self, group: NodeGroup, monitor, writer):
         """Wait for the end of the budget, a dead node, a stall or Ctrl-C."""
         budget = self.plan.options.steps

@@ -98,9 +98,10 @@ class GraphMonitor(Node):
 
     def _manage_subscriptions(self) -> None:
         """
-        Timer, on the executor's thread: subscribe to the images once asked, and to
-        ``saliency_mask`` only while the gallery waits for a sample (saliency_node renders masks
-        only while someone subscribes).
+        Add or remove image subscriptions (a timer, so on the executor's thread).
+
+        The images once asked for; ``saliency_mask`` only while the gallery waits for a sample
+        (saliency_node renders masks only while someone subscribes).
         """
         if self._images_wanted.is_set() and not self._watching_images:
             self._watching_images = True
