@@ -1,6 +1,8 @@
 """
-The launcher's monitor node with real rclpy: its spinning survives a failing callback, and its
-image subscriptions come and go on the executor's own thread as the gallery asks.
+The launcher's monitor node with real rclpy.
+
+Its spinning survives a failing callback, and its image subscriptions come and go on the
+executor's own thread as the gallery asks.
 """
 
 import io
