@@ -4,7 +4,7 @@ from attention_common.stamps import frames_to_ns
 from env_node.core import (agent_box, EnvConfig, FRAME_HEIGHT, FRAME_WIDTH, MontezumaEnv,
                            pixel_to_ram, RAM_INVENTORY, ram_to_pixel, RAM_X, RamState,
                            read_ram_state)
-from env_node.status import Counters, parse_status, STATUS_KEYS, status_values
+from env_node.status import Counters, NO_LATENCY, parse_status, STATUS_KEYS, status_values
 import numpy as np
 import pytest
 
@@ -299,4 +299,7 @@ def test_status_values_round_trip(env):
     assert parsed['bad_actions'] == 1
     assert parsed['finished'] is True and parsed['terminated'] is False
     assert parsed['reward'] == 0.0 and parsed['agent_step'] == step.agent_step
+    assert parsed['action_latency_ms'] == NO_LATENCY  # no answer led to this step
+    timed = parse_status(status_values(step, Counters(), False, action_latency_ms=4.56789))
+    assert timed['action_latency_ms'] == 4.568 and timed['finished'] is False
     assert parse_status([('extra', 'text')]) == {'extra': 'text'}

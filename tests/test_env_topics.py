@@ -8,7 +8,7 @@ from attention_common.image_codec import image_to_numpy
 from attention_common.joy_actions import action_to_joy
 from attention_common.stamps import frames_to_ns, stamp_to_ns
 from diagnostic_msgs.msg import DiagnosticArray
-from env_node.status import parse_status
+from env_node.status import NO_LATENCY, parse_status
 from geometry_msgs.msg import PointStamped
 import pytest
 from rosgraph_msgs.msg import Clock
@@ -103,6 +103,9 @@ def test_lockstep_frames_stamps_and_motion(start_node, probe):
     assert len(points) > 1  # the agent moved
     last = learner.status_at(observed[-1])
     assert last['agent_step'] == 16 and last['room'] == 1 and not last['finished']
+    # The env times its closed loop: the first step answered nothing, later ones one action each.
+    assert learner.status_at(first_ns)['action_latency_ms'] == NO_LATENCY
+    assert 0.0 < last['action_latency_ms'] < 1000.0 * REPLY_S
     assert env.stop(signal.SIGINT) == 0
 
 

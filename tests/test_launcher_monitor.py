@@ -73,21 +73,20 @@ def test_image_subscriptions_follow_the_gallery_on_the_executor_thread(spinning)
                            context=context)
     executor.add_node(monitor)
     thread.start()
-    images = {topics.OBSERVATION, topics.SALIENCY}
-    assert not images & _subscribed_topics(monitor)
-    monitor.watch_images()
-    assert wait_until(lambda: images <= _subscribed_topics(monitor), timeout=5.0)
-    assert topics.SALIENCY_MASK not in _subscribed_topics(monitor)
+    gallery_images = {topics.OBSERVATION, topics.SALIENCY_MASK}
+    assert topics.SALIENCY not in _subscribed_topics(monitor)
+    monitor.watch_images()  # saliency images are counted from then on
+    assert wait_until(lambda: topics.SALIENCY in _subscribed_topics(monitor), timeout=5.0)
+    assert not gallery_images & _subscribed_topics(monitor)
 
     with monitor.lock:
         gallery.request()
-    assert wait_until(lambda: topics.SALIENCY_MASK in _subscribed_topics(monitor), timeout=5.0)
+    assert wait_until(lambda: gallery_images <= _subscribed_topics(monitor), timeout=5.0)
     with monitor.lock:  # patience runs out: the frame alone is taken, the wait ends
         for stamp in range(5):
             gallery.on_image('observation', stamp, b'frame')
     assert len(gallery.samples) == 1
-    assert wait_until(lambda: topics.SALIENCY_MASK not in _subscribed_topics(monitor),
-                      timeout=5.0)
-    assert images <= _subscribed_topics(monitor)
+    assert wait_until(lambda: not gallery_images & _subscribed_topics(monitor), timeout=5.0)
+    assert topics.SALIENCY in _subscribed_topics(monitor)
     assert err.getvalue() == ''
     monitor.destroy_node()

@@ -166,15 +166,12 @@ def test_plan_overrides_follow_the_options(tmp_path):
     assert parse_params(plan.overrides_text()) == plan.overrides
 
 
-def test_plan_without_options_changes_only_budget_run_dir_and_listeners(tmp_path):
+def test_plan_without_options_changes_only_budget_and_run_dir(tmp_path):
     plan = _plan(tmp_path)
-    files = load_params_file(graph.graph_file())['env_node']
-    assert plan.overrides == {
-        'env_node': {'max_steps': DEFAULT_STEPS,
-                     # The launcher listens to observation and agent_position too.
-                     'wait_observation_subscribers': files['wait_observation_subscribers'] + 1,
-                     'wait_position_subscribers': files['wait_position_subscribers'] + 1},
-        'tamer_node': {'run_dir': str(plan.run_dir)}}
+    # env_node waits for the graph's own listeners, as in the launch file: the launcher hears
+    # env_status before the learners start, so it sees the first step without a wait of its own.
+    assert plan.overrides == {'env_node': {'max_steps': DEFAULT_STEPS},
+                              'tamer_node': {'run_dir': str(plan.run_dir)}}
 
 
 def test_seed_of_the_run_dir_comes_from_the_files(tmp_path):
@@ -232,37 +229,36 @@ def _tracker():
     return ProgressTracker(position_of=lambda x, y: 0 if x < 10 else (2 if x > 100 else -1))
 
 
-def test_tracker_pairs_by_stamp_in_any_order_and_keeps_the_furthest():
+def _status(step, x, room=1, **values):
+    return {'agent_step': step, 'x': x, 'y': 0, 'room': room, **values}
+
+
+def test_tracker_rows_from_status_keep_the_furthest_and_the_latencies():
     tracker = _tracker()
-    tracker.on_position(100, 5, 0, 1)
-    tracker.on_status(200, {'agent_step': 2, 'episode': 0}, 0.2)
-    tracker.on_status(100, {'agent_step': 1, 'episode': 0}, 0.1)
-    tracker.on_position(200, 150, 0, 1)
-    tracker.on_status(300, {'agent_step': 3, 'episode': 1, 'life_lost': True}, 0.3)
-    tracker.on_position(300, 50, 0, 1)
+    tracker.on_status(100, _status(1, 5, episode=0, action_latency_ms=-1.0), 0.1)
+    tracker.on_status(200, _status(2, 150, episode=0, action_latency_ms=3.5), 0.2)
+    tracker.on_status(300, _status(3, 50, episode=1, life_lost=True, action_latency_ms=1.25), 0.3)
     assert [r['agent_step'] for r in tracker.rows] == [1, 2, 3]
     assert [r['position'] for r in tracker.rows] == [0, 2, -1]
     assert [r['furthest_position'] for r in tracker.rows] == [0, 2, 2]
     assert tracker.first_step_at == {0: 1, 2: 2}
     assert tracker.lives_lost == 1 and tracker.episodes == {0, 1}
+    assert tracker.latencies_ms == [3.5, 1.25]  # the first step answered nothing
 
 
 def test_tracker_ignores_other_rooms_and_repeated_steps():
     tracker = _tracker()
-    tracker.on_status(100, {'agent_step': 1}, 0.1)
-    tracker.on_position(100, 150, 0, 2)  # Room 2's coordinates are not Room 1's positions
-    tracker.on_status(100, {'agent_step': 1}, 0.2)  # published again after a timeout
-    tracker.on_position(100, 150, 0, 2)
-    assert len(tracker.rows) == 1 and tracker.furthest == -1
-    tracker.on_status(200, {'agent_step': 2, 'finished': True}, 0.3)
-    assert tracker.finished
+    tracker.on_status(100, _status(1, 150, room=2), 0.1)  # Room 2: not Room 1's positions
+    tracker.on_status(100, _status(1, 150, room=2, action_latency_ms=2.0), 0.2)  # sent again
+    assert len(tracker.rows) == 1 and tracker.furthest == -1 and tracker.latencies_ms == []
+    tracker.on_status(200, _status(2, 50, finished=True), 0.3)
+    assert tracker.finished and len(tracker.rows) == 2
 
 
 def test_tracker_rate():
     tracker = _tracker()
     for step in range(11):
-        tracker.on_status(step, {'agent_step': step}, step * 0.5)
-        tracker.on_position(step, 50, 0, 1)
+        tracker.on_status(step, _status(step, 50), step * 0.5)
     assert tracker.rate() == pytest.approx(2.0)
 
 

@@ -306,6 +306,9 @@ class Launcher:
                  f'{summary["steps"]} steps')
         summary['files']['learning_curve'] = report.plot_learning_curve(
             rows, run_dir / report.LEARNING_CURVE_FILE, title)
+        samples = monitor.gallery.samples
+        summary['gallery'] = {'samples': len(samples),
+                              'with_saliency': sum(s.saliency is not None for s in samples)}
         summary['files']['saliency_gallery'] = report.plot_gallery(
             monitor.gallery.samples, run_dir / report.GALLERY_FILE, title,
             step_of=tracker.step_at_stamp)
@@ -338,7 +341,7 @@ class Launcher:
         with monitor.lock:
             counts = dict(monitor.counts)
             first_seen = {topic: round(t, 2) for topic, t in monitor.first_message_wall.items()}
-            latencies = list(monitor.latencies_s)
+            latencies = list(tracker.latencies_ms)
             metrics = dict(monitor.metrics)
         training_s = rows[-1]['wall_time_s'] - rows[0]['wall_time_s'] if len(rows) > 1 else 0.0
         steps = tracker.steps
@@ -347,7 +350,7 @@ class Launcher:
 
         def ms(q):
             value = percentile(latencies, q)
-            return None if value is None else round(value * 1000.0, 3)
+            return None if value is None else round(value, 3)
 
         run_dir = self.plan.run_dir
         return {

@@ -3,9 +3,11 @@ The launcher's own node: watches the graph's topics and asks the nodes for their
 
 Callbacks only update counters, the progress tracker and the gallery collector under one lock;
 the launcher's main thread reads them. Watching must not slow the graph (each message costs the
-launcher's executor a few hundred microseconds): images are subscribed raw and best-effort (a
-lost image only costs a count), ``saliency_mask`` only while the gallery takes a sample, and the
-plain ``feedback`` / ``utterance`` only when a person trains (the synthetic trainer's stamped
+launcher's executor a few hundred microseconds, an image more): per step the launcher takes
+``env_status`` (which carries the position and env_node's own closed-loop latency) and the
+stamped feedback, and ``saliency`` raw and best-effort to count it (a lost one only costs a
+count). ``observation`` and ``saliency_mask`` only while the gallery takes a sample; the plain
+``feedback`` / ``utterance`` only when a person trains (the synthetic trainer's stamped
 companions carry the same).
 
 Subscriptions change only on the executor's own thread (a timer), never from the launcher's main
@@ -16,7 +18,7 @@ executor for good (seen as a "stall" at the gallery's first sample).
 import threading
 import time
 import traceback
-from typing import Dict, List, Optional
+from typing import Dict, Optional
 
 from attention_bringup.gallery import (
     cdr_header_stamp_ns, GalleryCollector, MASK, OBSERVATION, SALIENCY)
@@ -24,12 +26,12 @@ from attention_bringup.progress import parse_key_values, ProgressTracker
 from attention_common import qos, topics
 from attention_common.stamps import stamp_to_ns
 from diagnostic_msgs.msg import DiagnosticArray
-from geometry_msgs.msg import PointStamped, Vector3Stamped
+from geometry_msgs.msg import Vector3Stamped
 from rcl_interfaces.srv import GetParameters, ListParameters
 from rclpy.node import Node
 from rclpy.parameter import parameter_value_to_python
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-from sensor_msgs.msg import Image, Joy
+from sensor_msgs.msg import Image
 from std_msgs.msg import Float32, String
 
 WATCH_IMAGES = QoSProfile(depth=10, reliability=ReliabilityPolicy.BEST_EFFORT)
@@ -41,10 +43,10 @@ SUBSCRIPTION_PERIOD_S = 0.1
 """How often the monitor's timer adds or removes the image subscriptions."""
 
 COUNTED_TOPICS = (
-    topics.OBSERVATION, topics.ACTION, topics.AGENT_POSITION, topics.ENV_STATUS,
-    topics.UTTERANCE, topics.UTTERANCE_STAMPED, topics.FEEDBACK, topics.FEEDBACK_STAMPED,
-    topics.SALIENCY, topics.SALIENCY_MASK, topics.METRICS,
+    topics.ENV_STATUS, topics.UTTERANCE, topics.UTTERANCE_STAMPED, topics.FEEDBACK,
+    topics.FEEDBACK_STAMPED, topics.SALIENCY, topics.METRICS,
 )
+"""Topics the launcher hears whole and counts (the gallery's images come and go)."""
 PLAIN_TOPICS = (topics.FEEDBACK, topics.UTTERANCE)
 
 
@@ -66,85 +68,72 @@ class GraphMonitor(Node):
             (t for t in COUNTED_TOPICS if watch_plain or t not in PLAIN_TOPICS), 0)
         self.first_message_wall: Dict[str, float] = {}
         self.metrics: Dict[str, object] = {}
-        self.latencies_s: List[float] = []
-        self._observed_at: Dict[int, float] = {}
-        self._answered = set()
         self._started = time.monotonic()
         sub = self.create_subscription
-        self._env_subscriptions = (
-            sub(DiagnosticArray, topics.ENV_STATUS, self._on_env_status, WATCH_STEPS),
-            sub(PointStamped, topics.AGENT_POSITION, self._on_position, WATCH_STEPS),
-        )
+        self._status_subscription = sub(
+            DiagnosticArray, topics.ENV_STATUS, self._on_env_status, WATCH_STEPS)
         sub(Vector3Stamped, topics.FEEDBACK_STAMPED, self._on_feedback_stamped, WATCH_STEPS)
         sub(DiagnosticArray, topics.UTTERANCE_STAMPED, self._on_utterance_stamped, WATCH_STEPS)
         if watch_plain:
             sub(Float32, topics.FEEDBACK, self._on_feedback, WATCH_STEPS)
             sub(String, topics.UTTERANCE, self._on_utterance, WATCH_STEPS)
         sub(DiagnosticArray, topics.METRICS, self._on_metrics, qos.METRICS)
-        sub(Joy, topics.ACTION, self._on_action, WATCH_STEPS)
         self._images_wanted = threading.Event()
         self._watching_images = False
-        self._mask_subscription = None
+        self._gallery_subscriptions = ()
         self.create_timer(SUBSCRIPTION_PERIOD_S, self._manage_subscriptions)
 
     def watch_images(self) -> None:
-        """
-        Ask for the image subscriptions (call once env_node is heard; any thread).
-
-        env_node publishes its first step only when the launcher, too, subscribes to
-        ``observation`` (its wait counts include the launcher), so the launcher sees step one.
-        """
+        """Ask for the image subscriptions (call once env_node is heard; any thread)."""
         self._images_wanted.set()
 
     def _manage_subscriptions(self) -> None:
         """
         Add or remove image subscriptions (a timer, so on the executor's thread).
 
-        The images once asked for; ``saliency_mask`` only while the gallery waits for a sample
-        (saliency_node renders masks only while someone subscribes).
+        ``saliency`` once asked for; ``observation`` and ``saliency_mask`` only while the
+        gallery waits for a sample (saliency_node renders masks only while someone subscribes).
         """
         if self._images_wanted.is_set() and not self._watching_images:
             self._watching_images = True
-            for topic, kind in ((topics.OBSERVATION, OBSERVATION), (topics.SALIENCY, SALIENCY)):
-                self.create_subscription(Image, topic, self._image_callback(topic, kind),
-                                         WATCH_IMAGES, raw=True)
+            self.create_subscription(Image, topics.SALIENCY,
+                                     self._image_callback(topics.SALIENCY, SALIENCY),
+                                     WATCH_IMAGES, raw=True)
         with self.lock:
             waiting = self.gallery.waiting and not self.gallery.full
-        if waiting and self._watching_images and self._mask_subscription is None:
-            self._mask_subscription = self.create_subscription(
-                Image, topics.SALIENCY_MASK, self._image_callback(topics.SALIENCY_MASK, MASK),
-                WATCH_IMAGES, raw=True)
-        elif not waiting and self._mask_subscription is not None:
-            self.destroy_subscription(self._mask_subscription)
-            self._mask_subscription = None
+        if waiting and self._watching_images and not self._gallery_subscriptions:
+            self._gallery_subscriptions = tuple(
+                self.create_subscription(Image, topic, self._image_callback(topic, kind),
+                                         WATCH_IMAGES, raw=True)
+                for topic, kind in ((topics.OBSERVATION, OBSERVATION),
+                                    (topics.SALIENCY_MASK, MASK)))
+        elif not waiting and self._gallery_subscriptions:
+            for subscription in self._gallery_subscriptions:
+                self.destroy_subscription(subscription)
+            self._gallery_subscriptions = ()
 
     def learners_listen(self) -> bool:
         """Return whether saliency and tamer take observations and feedback takes positions."""
         return (self.count_subscribers(topics.OBSERVATION) >= 2
-                and self.count_subscribers(topics.AGENT_POSITION) >= 2)  # feedback_node and us
+                and self.count_subscribers(topics.AGENT_POSITION) >= 1)
 
     def hears_env(self) -> bool:
-        """Return whether env_node's step publishers are matched (so no step goes unseen)."""
-        return all(s.get_publisher_count() > 0 for s in self._env_subscriptions)
+        """Return whether env_node's ``env_status`` is matched (so no step goes unseen)."""
+        return self._status_subscription.get_publisher_count() > 0
 
     def elapsed(self) -> float:
         return time.monotonic() - self._started
 
     def _count(self, topic: str) -> None:
-        self.counts[topic] += 1
-        self.first_message_wall.setdefault(topic, self.elapsed())
+        if topic in self.counts:
+            self.counts[topic] += 1
+            self.first_message_wall.setdefault(topic, self.elapsed())
 
     def _on_env_status(self, msg: DiagnosticArray) -> None:
         values = key_values(msg)
         with self.lock:
             self._count(topics.ENV_STATUS)
             self.tracker.on_status(stamp_to_ns(msg.header.stamp), values, self.elapsed())
-
-    def _on_position(self, msg: PointStamped) -> None:
-        with self.lock:
-            self._count(topics.AGENT_POSITION)
-            self.tracker.on_position(stamp_to_ns(msg.header.stamp), float(msg.point.x),
-                                     float(msg.point.y), int(round(msg.point.z)))
 
     def _on_feedback_stamped(self, msg: Vector3Stamped) -> None:
         with self.lock:
@@ -182,19 +171,8 @@ class GraphMonitor(Node):
             self._count(topics.METRICS)
             self.metrics.update(values)
 
-    def _on_action(self, msg: Joy) -> None:
-        now = time.monotonic()
-        stamp = stamp_to_ns(msg.header.stamp)
-        with self.lock:
-            self._count(topics.ACTION)
-            observed = self._observed_at.get(stamp)
-            if observed is not None and stamp not in self._answered:
-                self._answered.add(stamp)
-                self.latencies_s.append(now - observed)
-
     def _image_callback(self, topic: str, kind: str):
         def callback(raw: bytes) -> None:
-            now = time.monotonic()
             try:
                 stamp = cdr_header_stamp_ns(raw)
             except ValueError as error:
@@ -204,12 +182,6 @@ class GraphMonitor(Node):
                 self._count(topic)
                 if kind == SALIENCY:
                     self.tracker.counters.saliency += 1
-                if kind == OBSERVATION:
-                    self._observed_at[stamp] = now
-                    if len(self._observed_at) > 256:
-                        oldest = next(iter(self._observed_at))  # stamps arrive in order
-                        del self._observed_at[oldest]
-                        self._answered.discard(oldest)
                 self.gallery.on_image(kind, stamp, raw)
         return callback
 

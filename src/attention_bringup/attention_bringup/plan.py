@@ -25,9 +25,6 @@ REALTIME_RATE_HZ = 15.0
 
 OVERRIDES_FILE = 'launcher_overrides.yaml'
 
-WAIT_PARAMETERS = ('wait_observation_subscribers', 'wait_position_subscribers')
-"""env_node waits in lockstep until this many subscribers listen before its first step."""
-
 
 @dataclass
 class LaunchOptions:
@@ -126,10 +123,6 @@ def launcher_overrides(options: LaunchOptions, seed: int, run_dir: Path,
     """Return the parameters the launcher's options fix, one section per node."""
     overrides: GraphParams = {node: {} for node in NODES}
     overrides['env_node']['max_steps'] = int(options.steps)
-    env = node_params(files_params, 'env_node')
-    for name in WAIT_PARAMETERS:  # the launcher's own node listens too
-        if name in env:
-            overrides['env_node'][name] = int(env[name]) + 1
     overrides['tamer_node']['run_dir'] = str(run_dir)
     if options.seed is not None:
         for node in NODES:

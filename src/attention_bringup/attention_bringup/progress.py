@@ -1,14 +1,14 @@
 """
 Training progress as the launcher sees it, from plain values (no rclpy).
 
-``ProgressTracker`` pairs each step's ``env_status`` with its ``agent_position`` by stamp and
-turns them into one row per agent step (for ``progress.csv`` and the learning curve), keeping
-the furthest critical position reached so far. ``format_bar`` draws the terminal line.
+``ProgressTracker`` turns each step's ``env_status`` into one row per agent step (for
+``progress.csv`` and the learning curve), keeping the furthest critical position reached so far
+and the closed-loop latency env_node measured. ``format_bar`` draws the terminal line.
 """
 
 from dataclasses import dataclass, field
 import math
-from typing import Callable, Dict, List, Mapping, Optional, Tuple
+from typing import Callable, Dict, List, Mapping, Optional
 
 PROGRESS_COLUMNS = (
     'agent_step', 'sim_time_s', 'wall_time_s', 'episode', 'episode_step', 'lives', 'has_key',
@@ -64,40 +64,25 @@ class ProgressTracker:
     step_at_stamp: Dict[int, int] = field(default_factory=dict)
     latest: dict = field(default_factory=dict)
     finished: bool = False
-    _statuses: Dict[int, Tuple[dict, float]] = field(default_factory=dict)
-    _positions: Dict[int, Tuple[float, float, int]] = field(default_factory=dict)
+    latencies_ms: List[float] = field(default_factory=list)
+    """env_node's ``action_latency_ms`` of every step an answer led to."""
     _had_key: bool = False
     _last_stamp: int = -1
 
     def on_status(self, stamp_ns: int, values: Mapping[str, object], wall_s: float) -> None:
+        """Take one ``env_status`` (parsed key-values); a step seen twice counts once."""
         if values.get('finished'):
             self.finished = True
-        self._statuses[stamp_ns] = (dict(values), wall_s)
-        self._pair(stamp_ns)
-
-    def on_position(self, stamp_ns: int, x: float, y: float, room: int) -> None:
-        self._positions[stamp_ns] = (x, y, room)
-        self._pair(stamp_ns)
-
-    def _pair(self, stamp_ns: int) -> None:
-        if stamp_ns not in self._statuses or stamp_ns not in self._positions:
-            self._bound()
-            return
-        values, wall_s = self._statuses.pop(stamp_ns)
-        x, y, room = self._positions.pop(stamp_ns)
-        self._bound()
-        if stamp_ns <= self._last_stamp:  # a step published twice (after an action timeout)
+        if stamp_ns <= self._last_stamp:  # the first step, sent again during start-up
             return
         self._last_stamp = stamp_ns
-        self._add_row(stamp_ns, values, wall_s, x, y, room)
+        latency = values.get('action_latency_ms')
+        if isinstance(latency, (int, float)) and latency >= 0:
+            self.latencies_ms.append(float(latency))
+        self._add_row(stamp_ns, values, wall_s)
 
-    def _bound(self, keep: int = 200) -> None:
-        """Unpaired halves (a lost message) must not pile up: keep the newest ``keep``."""
-        for store in (self._statuses, self._positions):
-            while len(store) > keep:
-                del store[min(store)]
-
-    def _add_row(self, stamp_ns, values, wall_s, x, y, room) -> None:
+    def _add_row(self, stamp_ns: int, values: Mapping[str, object], wall_s: float) -> None:
+        x, y, room = (values.get(key, 0) for key in ('x', 'y', 'room'))
         position = self.position_of(x, y) if int(room) == self.start_room else -1
         step = int(values.get('agent_step', len(self.rows)))
         if position > self.furthest:

@@ -23,7 +23,7 @@ from attention_common.parameters import declare_parameters
 from attention_common.stamps import ns_to_stamp, stamp_to_ns
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from env_node.core import EnvConfig, MontezumaEnv, Step
-from env_node.status import Counters, STATUS_KEYS, STATUS_NAME, status_values
+from env_node.status import Counters, NO_LATENCY, STATUS_KEYS, STATUS_NAME, status_values
 from geometry_msgs.msg import PointStamped
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
@@ -121,6 +121,7 @@ class EnvNode(Node):
         self._pending_ns = None  # lockstep: stamp of the observation awaiting its action
         self._answered = False  # lockstep: an action has been applied (start-up is over)
         self._started_at = self._sent_at = time.monotonic()
+        self._latency_ms = NO_LATENCY  # lockstep: observation published -> its action received
         self._latest_action = 0  # real time: NOOP until a valid action arrives
         self._current = self._env.warm_up()
 
@@ -157,7 +158,8 @@ class EnvNode(Node):
         point.x, point.y, point.z = float(state.x), float(state.y), float(state.room)
         self._position_pub.publish(self._position_msg)
         for key_value, (_, value) in zip(
-                self._key_values, status_values(step, self._counters, finished)):
+                self._key_values,
+                status_values(step, self._counters, finished, self._latency_ms)):
             key_value.value = value
         self._status.message = ('finished' if finished else
                                 'episode over' if step.done else 'running')
@@ -291,6 +293,7 @@ class EnvNode(Node):
             if pending is None or stamp_ns != pending:
                 dropped = self._drop()
             else:
+                self._latency_ms = 1000.0 * (time.monotonic() - self._sent_at)
                 self._pending_ns = None  # consumed before stepping: a duplicate cannot match
                 if not self._answered:
                     self._answered = True

@@ -14,13 +14,16 @@ STATUS_NAME = 'env_node'
 
 INT_KEYS = ('agent_step', 'episode', 'episode_step', 'lives', 'room', 'x', 'y', 'timeouts',
             'dropped_actions', 'bad_actions')
-FLOAT_KEYS = ('reward', 'episode_return')
+FLOAT_KEYS = ('reward', 'episode_return', 'action_latency_ms')
 BOOL_KEYS = ('has_key', 'terminated', 'truncated', 'life_lost', 'finished')
 
 STATUS_KEYS = ('agent_step', 'episode', 'episode_step', 'lives', 'has_key', 'reward',
                'episode_return', 'terminated', 'truncated', 'life_lost', 'room', 'x', 'y',
-               'timeouts', 'dropped_actions', 'bad_actions', 'finished')
+               'timeouts', 'dropped_actions', 'bad_actions', 'finished', 'action_latency_ms')
 """Every key, in the order the node publishes them."""
+
+NO_LATENCY = -1.0
+"""``action_latency_ms`` of a step no lockstep answer led to (the first one, real time)."""
 
 
 class Counters(NamedTuple):
@@ -40,8 +43,14 @@ def _text(value: Union[bool, int, float]) -> str:
     return str(value)
 
 
-def status_values(step: Step, counters: Counters, finished: bool) -> List[Tuple[str, str]]:
-    """Return ``[(key, value)]`` of one step, in ``STATUS_KEYS`` order."""
+def status_values(step: Step, counters: Counters, finished: bool,
+                  action_latency_ms: float = NO_LATENCY) -> List[Tuple[str, str]]:
+    """
+    Return ``[(key, value)]`` of one step, in ``STATUS_KEYS`` order.
+
+    ``action_latency_ms``: wall time from publishing the observation this step answered to
+    receiving its action (the closed loop as env_node sees it).
+    """
     state = step.state
     values = {
         'agent_step': step.agent_step, 'episode': step.episode,
@@ -51,6 +60,7 @@ def status_values(step: Step, counters: Counters, finished: bool) -> List[Tuple[
         'life_lost': step.life_lost, 'room': state.room, 'x': state.x, 'y': state.y,
         'timeouts': counters.timeouts, 'dropped_actions': counters.dropped_actions,
         'bad_actions': counters.bad_actions, 'finished': finished,
+        'action_latency_ms': round(action_latency_ms, 3),
     }
     return [(key, _text(values[key])) for key in STATUS_KEYS]
 
