@@ -4,9 +4,9 @@ Benchmark: the whole graph (four processes over DDS) against the same loop in on
 1. Graph: ``attention_train --condition language`` with learning on, for ``--graph-steps``
    agent steps (default 10,000, so the memory column is "after 10,000 steps"). Numbers come
    from the run's ``summary.json``: steps/s while training, the observation-to-action latency
-   the launcher sees (receive time of observation T to receive time of the action stamped T),
-   the tamer's own acting time, saliency images/s, learner updates/s and each node's resident
-   memory at the end.
+   env_node measures (publishing observation T to receiving the action stamped T: the closed
+   loop), the tamer's own acting time, saliency images/s, learner updates/s, each node's
+   resident memory and CPU time at the end.
 2. In process: the same cores without ROS (env core, synthetic trainer, saliency maker,
    TamerAgent with its learner thread), one step after the other, for ``--inprocess-steps``.
 
@@ -162,9 +162,9 @@ def table(graph: dict, local: dict) -> str:
         ('closed-loop env steps/s, learning on', _fmt(graph['steps_per_s']),
          _fmt(local['steps_per_s']), ''),
         ('graph / in-process', _fmt(ratio, 2), '', f'>= 0.50 {ratio_ok}'),
-        ('observation -> action p50 (ms), at the launcher', _fmt(graph['latency_p50_ms'], 2),
+        ('observation -> action p50 (ms), at env_node', _fmt(graph['latency_p50_ms'], 2),
          '', ''),
-        ('observation -> action p99 (ms), at the launcher', _fmt(graph['latency_p99_ms'], 2),
+        ('observation -> action p99 (ms), at env_node', _fmt(graph['latency_p99_ms'], 2),
          '', f'< 10 {latency_ok}'),
         ('tamer acting time p50 / p99 (ms)',
          f'{_fmt(graph["act_p50_ms"], 2)} / {_fmt(graph["act_p99_ms"], 2)}',
