@@ -17,26 +17,14 @@ import argparse
 import json
 import os
 from pathlib import Path
-import platform
 import subprocess
 import sys
 import tempfile
 import time
 
+from machine_info import machine
+
 BIN = Path(sys.executable).parent
-
-
-def machine() -> str:
-    model = 'unknown CPU'
-    try:
-        for line in open('/proc/cpuinfo'):
-            if line.startswith('model name'):
-                model = line.split(':', 1)[1].strip()
-                break
-    except OSError:
-        pass
-    cores = len(os.sched_getaffinity(0)) if hasattr(os, 'sched_getaffinity') else os.cpu_count()
-    return f'{model}, {cores} cores, Python {platform.python_version()}, {platform.system()}'
 
 
 def graph_run(steps: int, workdir: Path) -> dict:

@@ -31,12 +31,12 @@ import importlib
 import json
 import os
 from pathlib import Path
-import platform
 import subprocess
 import sys
 import time
 
 from attention_common.isolation import apply_to_this_process, isolated_environ, reserved_domain
+from machine_info import machine
 
 # rclpy is imported lazily, in functions, so this holds before it is loaded in any process.
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
@@ -298,19 +298,6 @@ def run_benchmark(count: int, image_count: int, period: float, depth: int) -> di
 
 
 # --- report ---------------------------------------------------------------------------------
-
-def machine() -> str:
-    model = 'unknown CPU'
-    try:
-        for line in open('/proc/cpuinfo'):
-            if line.startswith('model name'):
-                model = line.split(':', 1)[1].strip()
-                break
-    except OSError:
-        pass
-    cores = len(os.sched_getaffinity(0)) if hasattr(os, 'sched_getaffinity') else os.cpu_count()
-    return f'{model}, {cores} cores, Python {platform.python_version()}, {platform.system()}'
-
 
 def print_table(result: dict, period: float, depth: int, domain: int) -> None:
     print('| message | serialized bytes | subscribers | received of sent | publish() µs '
