@@ -15,15 +15,24 @@ BUDGET = 1000
 
 
 def synthetic_record(condition, seed, firsts, outcome='completed', budget=BUDGET,
-                     updates_per_step=1.0):
-    """Return a result file of the real layout with the given first visits (position -> step)."""
+                     updates_per_step=1.0, at=None, h=None):
+    """
+    Return a result file of the real layout with the given first visits (position -> step).
+
+    ``at`` (position -> steps there) and ``h`` add the later fields ``steps_at_position`` and
+    ``feedback_mean``; without them the file is of the older kind.
+    """
     first = {str(p): firsts.get(p) for p in trials.POSITIONS}
     visited = [p for p, step in firsts.items() if step is not None]
     curve = []
     for step in range(0, budget + 1, trials.CURVE_EVERY):
         reached = [p for p, s in firsts.items() if s is not None and s <= step]
         curve.append(max(reached, default=-1))
+    later = {} if at is None else {
+        'steps_at_position': {str(p): at.get(p, 0) for p in (-1,) + trials.POSITIONS},
+        'feedback_mean': h}
     return {
+        **later,
         'format': trials.FORMAT, 'condition': condition, 'seed': seed, 'budget': budget,
         'outcome': outcome, 'exit_code': 0 if outcome == 'completed' else 1,
         'launcher_status': 'completed' if outcome == 'completed' else 'node_failed',
@@ -144,6 +153,38 @@ def test_a_significant_language_effect_is_reported_as_disagreement(tmp_path, no_
             'every trial') in text
     assert 'Not assessed: too few finished trials of blind_obs' in text
     assert 'mean updates per step: vanilla 1.00, language 0.50' in text
+
+
+def test_where_the_steps_go_table_and_the_reward_property(tmp_path, no_figures):
+    records = [synthetic_record('vanilla', 0, {0: 10}, at={-1: 100, 0: 900}, h=0.8),
+               synthetic_record('vanilla', 1, {0: 10, 1: 50}, at={-1: 500, 0: 300, 1: 200},
+                                h=0.0),
+               synthetic_record('vanilla', 2, {0: 10}),  # an older file: unknown, not zero
+               synthetic_record('language', 0, {0: 10, 1: 20}, at={-1: 200, 1: 800}, h=0.6)]
+    for record in records:
+        record['parameters']['feedback_node.reward_variant'] = 'nearest'
+    write_study(tmp_path / 'study', records)
+    code, _, report = run_analysis(tmp_path, ['--conditions', 'vanilla', 'language',
+                                              '--trials', '3'])
+    assert code == 0
+    text = report.read_text()
+    assert '### Where the agent spends its steps' in text
+    assert ('| `vanilla` | 2 | 30.0 % | 60.0 % | 10.0 % | 0.0 % | 0.0 % | 0.0 % | 0.0 % | '
+            '0.40 ± 0.57 | 1/2 (pos 0: 1) |') in text
+    assert '| all | 3 | 26.7 % | 40.0 % | 33.3 % |' in text
+    paragraph = next(p for p in text.split('\n\n') if p.startswith('Reward property'))
+    assert ('Over the 3 full trials with step counts, the agent spent on average 40.0 % of its '
+            'recorded steps near position 0, 33.3 % near positions 1 to 5 and 26.7 % near '
+            'none; mean h was +0.47.') in paragraph
+    assert 'vanilla 60.0 % / 10.0 % / +0.40; language 0.0 % / 80.0 % / +0.60' in paragraph
+    assert '(position 0 in 1, position 1 in 1)' in paragraph
+    assert 'was not used in this study' in paragraph
+
+
+def test_older_result_files_have_no_reward_property_paragraph(six_conditions):
+    text = six_conditions[2].read_text()
+    assert '| all | 0 | n/a |' in text and 'Reward property' not in text
+    assert 'wall-clock' not in text
 
 
 def test_floor_effect_is_named_when_vanilla_never_progresses(tmp_path, no_figures):

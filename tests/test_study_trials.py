@@ -55,11 +55,42 @@ def test_record_of_a_completed_run(tmp_path):
     assert record['furthest_position'] == 2
     assert record['key_pickups'] == 2 and record['key'] is True
     assert (record['episodes'], record['lives_lost']) == (2, 2)
+    assert record['steps_at_position'] == {'-1': 7, '0': 2, '1': 1, '2': 1, '3': 0, '4': 0,
+                                           '5': 0}
+    assert record['feedback_mean'] is None  # not in this summary
     assert len(json.dumps(record)) < 4000
     # Progress counts a later position for the earlier ones; unreached is budget + 1.
     assert progress_step(record, 0) == 2 and progress_step(record, 1) == 2
     assert progress_step(record, 3) is None and censored_steps(record, 3) == 11
     assert censored_steps(record, 2) == 6
+
+
+def test_refresh_adds_the_new_fields_and_keeps_what_the_runner_knew(tmp_path):
+    positions = [-1, 0, 0, 0, 1, -1, 0]
+    _write_run(tmp_path / 'runs' / 'vanilla' / 'seed0', positions,
+               summary={'status': 'completed', 'feedback_mean': 0.5})
+    out = tmp_path / 'out'
+    old = trials.build_record('vanilla', 0, 6, tmp_path / 'runs' / 'vanilla' / 'seed0', 0, 99.5,
+                              started_at='2020-01-01T00:00:00', parallel=2)
+    for field in ('steps_at_position', 'feedback_mean'):
+        del old[field]  # a result file written before these fields existed
+    old['run_dir'] = 'runs/vanilla/seed0'  # stored relative to where the study ran
+    trials.write_json(trials.trial_path(out, 'vanilla', 0), old)
+    gone = dict(old, seed=1, run_dir='runs/vanilla/seed1')
+    trials.write_json(trials.trial_path(out, 'vanilla', 1), gone)
+    refreshed, skipped = trials.refresh_records(out, ['vanilla', 'language'], tmp_path)
+    assert refreshed == [trials.trial_path(out, 'vanilla', 0)]
+    assert list(skipped) == [trials.trial_path(out, 'vanilla', 1)]
+    record = trials.read_json(refreshed[0])
+    assert record['steps_at_position'] == {'-1': 2, '0': 4, '1': 1, '2': 0, '3': 0, '4': 0,
+                                           '5': 0}
+    assert record['feedback_mean'] == 0.5
+    assert (record['wall_time_s'], record['started_at'], record['parallel']) == (
+        99.5, '2020-01-01T00:00:00', 2)
+    assert record['run_dir'] == 'runs/vanilla/seed0'
+    new_fields = ('steps_at_position', 'feedback_mean')
+    assert {k: v for k, v in record.items() if k not in new_fields} == old
+    assert trials.read_json(trials.trial_path(out, 'vanilla', 1)) == gone
 
 
 def test_lives_and_episodes_come_from_the_rows_without_a_summary(tmp_path):

@@ -9,6 +9,10 @@ Censoring: a trial that never reaches p within its budget has no step count for 
 the reach rate (with a Wilson 95 % interval) and the mean steps over the trials that reached p;
 the t-tests on steps to p count an unreached trial as budget + 1 steps (a lower bound of its
 true value, so differences in steps are if anything understated).
+
+Where the agent spends its steps: the fraction of a trial's recorded steps within 8 px of each
+critical position (-1: of none), averaged over trials, with the trainer's mean h. Result files
+written before these fields existed count as unknown (left out), not as zero.
 """
 
 from typing import Dict, List, Mapping, Optional, Sequence
@@ -20,6 +24,10 @@ BASELINE = 'vanilla'
 TESTED_POSITIONS = (1, 2, 3)
 """Positions whose steps-to-reach are t-tested (the thesis's figures show 1 to 3)."""
 MEASURES = ('furthest_position',) + tuple(f'steps_to_{p}' for p in TESTED_POSITIONS)
+PLACES = (-1,) + POSITIONS
+"""Position indices of ``steps_at_position``: -1 (near none) and the critical positions."""
+SETTLED_SHARE = 0.5
+"""A trial settled near a position if more than this share of its steps was spent there."""
 
 
 def progress_step(record: Mapping, position: int) -> Optional[int]:
@@ -92,6 +100,42 @@ def furthest_curve(records: Sequence[Mapping]) -> dict:
     return {'steps': steps, 'mean': means, 'ci_low': lows, 'ci_high': highs, 'n': len(records)}
 
 
+def position_shares(record: Mapping) -> Optional[Dict[str, float]]:
+    """Return the share of the trial's recorded steps at each place (None: not recorded)."""
+    counts = record.get('steps_at_position')
+    total = sum(counts.values()) if counts else 0
+    if not total:
+        return None
+    return {str(p): counts.get(str(p), 0) / total for p in PLACES}
+
+
+def where_steps_go(records: Sequence[Mapping]) -> dict:
+    """Mean step shares per place, trials settled near one position, and mean h."""
+    usable = [record for record in records if is_usable(record)]
+    shares = [s for s in (position_shares(r) for r in usable) if s is not None]
+    settled = dict.fromkeys((str(p) for p in POSITIONS), 0)
+    for share in shares:
+        top = max(POSITIONS, key=lambda p: share[str(p)])
+        if share[str(top)] > SETTLED_SHARE:
+            settled[str(top)] += 1
+    mean_share = {str(p): (sum(s[str(p)] for s in shares) / len(shares) if shares else None)
+                  for p in PLACES}
+    return {
+        'n': len(shares),
+        'share': mean_share,
+        'settled': settled,
+        'feedback_mean': _estimate([r['feedback_mean'] for r in usable
+                                    if r.get('feedback_mean') is not None]),
+    }
+
+
+def reward_variants(records: Sequence[Mapping]) -> List[str]:
+    """Return the feedback_node reward variants the trials recorded (sorted, distinct)."""
+    found = {record.get('parameters', {}).get('feedback_node.reward_variant')
+             for record in records}
+    return sorted(str(variant) for variant in found if variant is not None)
+
+
 def summarize_condition(condition: str, records: Sequence[Mapping]) -> dict:
     """Aggregate one condition's trials (only those whose whole budget was recorded)."""
     usable = [record for record in records if is_usable(record)]
@@ -125,6 +169,7 @@ def summarize_condition(condition: str, records: Sequence[Mapping]) -> dict:
         'wall_time_s': _estimate([r['wall_time_s'] for r in usable]),
         'updates_per_step': _estimate([r['learner_updates'] / r['steps'] for r in usable
                                        if r.get('learner_updates') is not None and r['steps']]),
+        'where': where_steps_go(usable),
     }
 
 
@@ -171,9 +216,12 @@ def analyse(by_condition: Mapping[str, Sequence[Mapping]]) -> dict:
         summary['reach_curves'] = {str(p): reach_curve(usable, p, grid) for p in POSITIONS}
         summary['furthest_curve'] = furthest_curve(usable)
         conditions[condition] = summary
+    every = [record for records in by_condition.values() for record in records]
     return {
         'budget': budget,
         'conditions': conditions,
+        'where': where_steps_go(every),
+        'reward_variants': reward_variants(every),
         'tests': compare_to_baseline(by_condition) if BASELINE in by_condition else [],
         'problems': [
             {key: record.get(key) for key in ('condition', 'seed', 'outcome', 'exit_code',

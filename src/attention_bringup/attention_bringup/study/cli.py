@@ -4,7 +4,9 @@
 Runs every condition's trials through ``attention_train`` (seed = trial index), keeps one small
 result file per trial under ``<out>/trials/``, then draws the figures into ``<out>/`` and writes
 the report. Trials whose result file exists are skipped, so the same command resumes. With
-``--analyze-only`` it only redraws the figures and rewrites the report from the result files.
+``--analyze-only`` it only redraws the figures and rewrites the report from the result files;
+``--refresh-records`` first rebuilds the result files from the trials' run folders (for fields
+added since they were written), then does the same.
 
 Exit code: 0 when the report was written (crashed trials are in it); 2 for bad options or
 result files; 130 when interrupted (finished trials are kept).
@@ -26,7 +28,8 @@ from attention_bringup.graph import CONDITIONS
 from attention_bringup.plan import positive_int
 from attention_bringup.study import analysis as study_analysis
 from attention_bringup.study import figures, report, runner
-from attention_bringup.study.trials import is_usable, load_records, write_json
+from attention_bringup.study.trials import (
+    is_usable, load_records, refresh_records, write_json)
 
 DEFAULT_TRIALS = 10
 DEFAULT_STEPS = 10000
@@ -62,6 +65,12 @@ def argument_parser() -> argparse.ArgumentParser:
                              'else <out>/runs)')
     parser.add_argument('--analyze-only', action='store_true',
                         help='run no trials; redraw figures and rewrite the report')
+    parser.add_argument('--refresh-records', action='store_true',
+                        help='rebuild every result file (not retried/) from its run folder, '
+                             'keeping its wall time, start and exit code, then analyse as '
+                             '--analyze-only does (no trial runs). A run_dir stored as a '
+                             'relative path is taken relative to the current directory: run '
+                             'it from where the study ran (the repository root)')
     parser.add_argument('--retry-crashed', action='store_true',
                         help='re-run trials recorded as crashed or timed out (their old result '
                              'files move to trials/<condition>/retried/ and stay in the report)')
@@ -184,6 +193,15 @@ def run_study(options: argparse.Namespace, out_dir: Path) -> Optional[dict]:
     return entry
 
 
+def refresh(options: argparse.Namespace, out_dir: Path) -> None:
+    """Rebuild the result files from their run folders (relative ones under the cwd)."""
+    refreshed, skipped = refresh_records(out_dir, options.conditions, Path.cwd())
+    for path, why in skipped.items():
+        _say(f'{path}: not refreshed: {why}')
+    _say(f'{len(refreshed)} result file(s) refreshed from their run folders, '
+         f'{len(skipped)} skipped')
+
+
 def analyse_and_report(options: argparse.Namespace, out_dir: Path) -> dict:
     """Load the result files, write analysis.json, the figures and the report."""
     found = load_records(out_dir, options.conditions)
@@ -222,7 +240,9 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     out_dir = Path(options.out).resolve()
     interrupted = False
     try:
-        if not options.analyze_only:
+        if options.refresh_records:
+            refresh(options, out_dir)
+        elif not options.analyze_only:
             entry = run_study(options, out_dir)
             interrupted = bool(entry and entry['interrupted'])
         result = analyse_and_report(options, out_dir)

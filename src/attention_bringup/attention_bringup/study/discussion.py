@@ -9,7 +9,8 @@ the numbers: "significant" means Welch p < 0.05 (unadjusted; Holm-adjusted p is 
 
 from typing import List, Mapping, Optional
 
-from attention_bringup.study.analysis import BASELINE, TESTED_POSITIONS
+from attention_bringup.study.analysis import BASELINE, SETTLED_SHARE, TESTED_POSITIONS
+from attention_bringup.study.trials import POSITIONS
 
 ALPHA = 0.05
 
@@ -221,6 +222,82 @@ def floor_effect_note(analysis: Mapping) -> str:
             'difference" there reflects a floor, not evidence that the conditions are equal.')
 
 
+def _percent(share: float) -> str:
+    return f'{100 * share:.1f} %'
+
+
+def _h_text(estimate: Mapping) -> str:
+    return 'n/a' if estimate['mean'] is None else f'{estimate["mean"]:+.2f}'
+
+
+def _split(where: Mapping) -> str:
+    """Return 'near position 0 / near 1 to 5 / mean h' of a where-the-steps-go summary."""
+    share = where['share']
+    later = sum(share[str(p)] for p in POSITIONS[1:])
+    return f'{_percent(share["0"])} / {_percent(later)} / {_h_text(where["feedback_mean"])}'
+
+
+REWARD_RULE = (
+    "Reward property: the thesis's synthetic reward (equations 4.1/4.2; feedback_node's "
+    '`nearest` variant, used in every condition) gives h = +1 whenever the agent is within '
+    '8 px of *any* critical position, 0 up to 20 px, and -1 farther from all of them or after '
+    'it has stood still for more than 10 steps; it does not pay for moving on along the route.')
+
+
+def _settled_text(where: Mapping) -> str:
+    settled = {int(p): k for p, k in where['settled'].items() if k}
+    total, n = sum(settled.values()), where['n']
+    share = f'{100 * SETTLED_SHARE:.0f} %'
+    if not total:
+        return (f'In none of them did the agent spend more than {share} of its steps near one '
+                'critical position.')
+    places = ', '.join(f'position {p} in {k}' for p, k in sorted(settled.items()))
+    return (f'In {total} of {n} trials the agent spent more than {share} of its steps near '
+            f'one critical position ({places}).')
+
+
+def _variant_text(variants: List[str]) -> str:
+    if variants == ['nearest']:
+        return ("This is the thesis's reward reproduced as written (every trial recorded "
+                '`reward_variant: nearest`); our `progress` variant in feedback_node, which '
+                'counts only the furthest position reached so far in a life and the next one, '
+                'so that an earlier position stops paying once the agent has moved on, was not '
+                'used in this study.')
+    listed = ', '.join(f'`{v}`' for v in variants) or 'none recorded'
+    return f'Reward variants recorded by the trials: {listed}.'
+
+
+def reward_property_paragraph(analysis: Mapping) -> str:
+    """State how much of their steps the agents spent near which position, and why it matters."""
+    where = analysis.get('where')
+    if not where or not where['n']:
+        return ''
+    share = where['share']
+    later = sum(share[str(p)] for p in POSITIONS[1:])
+    per_condition = '; '.join(f'{c} {_split(s["where"])}'
+                              for c, s in analysis['conditions'].items() if s['where']['n'])
+    consequence = (
+        'Because the reward pays for standing near any critical position, a greedy learner of '
+        'H(s, a) can settle near one it has reached, often an early one, and collect +1 there '
+        'instead of moving on'
+        + ('; the settled trials above show this.' if any(where['settled'].values())
+           else '; in these trials no single position held most of the steps.'))
+    return ' '.join([
+        REWARD_RULE,
+        f'Over the {where["n"]} full trials with step counts, the agent spent on average '
+        f'{_percent(share["0"])} of its recorded steps near position 0, {_percent(later)} near '
+        f'positions 1 to 5 and {_percent(share["-1"])} near none; mean h was '
+        f'{_h_text(where["feedback_mean"])}. Per condition (near 0 / near 1 to 5 / mean h): '
+        f'{per_condition}.',
+        _settled_text(where),
+        consequence,
+        'This limits what any condition can show about the speed of progress along the route: '
+        'a learner that collects +1 where it stands is not rewarded for going further, whatever '
+        'saliency it is given.',
+        _variant_text(analysis.get('reward_variants', [])),
+    ])
+
+
 def updates_note(analysis: Mapping, tolerance: float = 0.2) -> str:
     """Say so when conditions got clearly different numbers of learner updates per step."""
     means = {c: s['updates_per_step']['mean'] for c, s in analysis['conditions'].items()
@@ -233,11 +310,15 @@ def updates_note(analysis: Mapping, tolerance: float = 0.2) -> str:
         return ''
     listed = ', '.join(f'{c} {m:.2f}' for c, m in means.items())
     return ('Confound: the learner took different numbers of gradient steps per agent step '
-            f'in different conditions (mean updates per step: {listed}). The tamer trains at a '
-            'wall-clock rate besides one update per feedback, and the L2 term adds a second '
-            'pass through the network, so a condition whose updates are slower or whose steps '
-            'are faster trains less per step. Differences between conditions can come from this '
-            'as well as from the saliency images.')
+            f'in different conditions (mean updates per step: {listed}). Its minibatch updates '
+            'are owed per second of simulation time, the same number per agent step in every '
+            'condition (unless the learner falls more than 5 s of simulation time behind and '
+            'drops owed ones), but its immediate updates are not: feedback that arrives while an '
+            'update runs, or while its step waits for a saliency image, shares one immediate '
+            'update, and the L2 term adds a second pass through the network, so a condition '
+            'whose updates are slower or whose steps are faster gets fewer updates per step. '
+            'Differences between conditions can come from this as well as from the saliency '
+            'images.')
 
 
 REPRODUCTION_NOTES = (
@@ -248,8 +329,14 @@ REPRODUCTION_NOTES = (
     'frames of our scripted expert with random detours, not on Atari Grand Challenge frames; '
     'each feedback is credited to exactly the step it judges. The seed fixes the emulator, the '
     "random warm-up, the trainer's random draws and the learner's initial weights and "
-    'minibatch sampling, but the learner trains on its own thread at a wall-clock rate, so a '
-    'trial is not bit-for-bit repeatable and depends somewhat on the load of the machine.')
+    'minibatch sampling. The learner owes minibatch updates at a fixed rate per second of '
+    'simulation time (`update_clock: sim`, 6 per simulation second, 0.4 per agent step) besides '
+    'an immediate update on each new feedback, but it runs on its own thread, asynchronously '
+    'to acting: which version of H acts at a step depends on timing, and a labelled sample '
+    'waits at most 0.5 wall seconds (`saliency_timeout_s`) for its saliency image before it is '
+    'used without the L2 term (in blind_obs and hidden_agent the actor, too, waits at most that '
+    'long for the image it acts on). So a trial is not bit-for-bit repeatable and depends '
+    'somewhat on the load of the machine.')
 
 
 def paragraphs(analysis: Mapping) -> List[str]:
@@ -265,5 +352,6 @@ def paragraphs(analysis: Mapping) -> List[str]:
             'improve on vanilla either (Figure 5.4).*'),
         hidden_agent_paragraph(analysis),
     ]
-    notes = [floor_effect_note(analysis), updates_note(analysis), REPRODUCTION_NOTES]
+    notes = [reward_property_paragraph(analysis), floor_effect_note(analysis),
+             updates_note(analysis), REPRODUCTION_NOTES]
     return found + [note for note in notes if note]

@@ -10,7 +10,7 @@ from pathlib import Path
 from typing import Mapping, Optional, Sequence
 
 from attention_bringup.study import discussion, stats
-from attention_bringup.study.analysis import BASELINE, MEASURES
+from attention_bringup.study.analysis import BASELINE, MEASURES, PLACES, SETTLED_SHARE
 from attention_bringup.study.discussion import _num, fmt_p
 from attention_bringup.study.trials import POSITIONS
 
@@ -102,8 +102,9 @@ def protocol_section(protocol: Mapping, analysis: Mapping) -> str:
         '',
         f'- {protocol["trials"]} independent trials per condition, seeds {seeds} (trial k runs '
         f'`attention_train --seed k`: the same seed for the emulator, the random warm-up, the '
-        "synthetic trainer and the learner's initial weights; the learner trains on a "
-        'wall-clock schedule, so a trial is not bit-for-bit repeatable).',
+        "synthetic trainer and the learner's initial weights and minibatch draws; the learner "
+        'trains on its own thread, asynchronously to acting, so which version of H acts at a '
+        'step depends on timing and a trial is not bit-for-bit repeatable).',
         f'- {protocol["steps"]} agent steps per trial after {", ".join(warmups)} random '
         'warm-up steps (not counted, not published); the same synthetic reward (feedback) '
         'function in every trial; lockstep stepping.',
@@ -136,8 +137,44 @@ def protocol_section(protocol: Mapping, analysis: Mapping) -> str:
         'Episodes: episodes begun (an episode ends on game over or leaving Room 1). Lives '
         "used: lives lost over the trial. Learner updates / step: the tamer's gradient "
         'steps (`train/updates`: immediate updates on new feedback plus minibatches at a fixed '
-        'rate per second of simulation time) '
-        'divided by agent steps.',
+        'rate per second of simulation time, `update_clock: sim`) divided by agent steps.',
+    ])
+
+
+def _settled(where: Mapping) -> str:
+    total = sum(where['settled'].values())
+    detail = ', '.join(f'pos {p}: {k}' for p, k in where['settled'].items() if k)
+    return f'{total}/{where["n"]}' + (f' ({detail})' if detail else '')
+
+
+def where_row(name: str, where: Mapping) -> tuple:
+    """One row of the where-the-steps-go table: n, shares -1..5, mean h, settled trials."""
+    if not where['n']:
+        shares = ('n/a',) * len(PLACES)
+    else:
+        shares = tuple(f'{100 * where["share"][str(p)]:.1f} %' for p in PLACES)
+    return ((name, where['n']) + shares
+            + (_mean_sd(where['feedback_mean'], 2), _settled(where) if where['n'] else 'n/a'))
+
+
+def where_table(analysis: Mapping, present: Sequence[str]) -> str:
+    """Where the agent spends its steps, per condition and over all (the reward property)."""
+    rows = [where_row(f'`{c}`', analysis['conditions'][c]['where']) for c in present]
+    if len(present) > 1:
+        rows.append(where_row('all', analysis['where']))
+    return '\n'.join([
+        '### Where the agent spends its steps (fraction of steps within 8 px of each critical '
+        'position; mean h)',
+        '',
+        'Mean over full trials of the share of their recorded steps near each position '
+        "(none: near no critical position); mean h: the synthetic trainer's mean feedback "
+        f'per trial, mean ± sd; settled: trials with more than {100 * SETTLED_SHARE:.0f} % of '
+        'their steps near one position. n counts the trials whose result file has the step '
+        'counts (older files lack them: `--refresh-records` rebuilds them from their run '
+        'folders).',
+        '',
+        _table(('condition', 'n', 'none') + tuple(f'pos {p}' for p in POSITIONS)
+               + ('mean h', 'settled'), rows),
     ])
 
 
@@ -189,6 +226,8 @@ def results_tables(analysis: Mapping, conditions: Sequence[str]) -> str:
         '### Furthest position reached: number of trials (-1: none)',
         '',
         _table(('condition',) + tuple(str(p) for p in (-1,) + POSITIONS), furthest),
+        '',
+        where_table(analysis, present),
     ])
 
 
@@ -251,7 +290,8 @@ def regenerate_section(command: str, log: Sequence[Mapping], analysis: Mapping,
              f'Trials whose result file exists (`{trials_dir}/<condition>/seed<k>.json`) '
              'are skipped, so the same command resumes an interrupted study; delete that folder '
              'to re-run every trial. `--analyze-only` redraws the figures and this report from '
-             'the result files without running anything.']
+             'the result files without running anything; `--refresh-records` first rebuilds '
+             'the result files from the run folders they name (for fields added later).']
     if runs:
         parallel = sorted({entry.get('parallel') for entry in runs})
         lines += ['', f'Measured wall time: {_duration(total)} over {len(runs)} invocation(s) '

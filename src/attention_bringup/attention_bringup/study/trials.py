@@ -7,13 +7,17 @@ position every ``CURVE_EVERY`` steps, key pick-ups, episodes, lives lost, wall t
 parameters that define the condition, and for a trial that did not finish cleanly the tail of
 its logs. Steps are agent steps after the warm-up (``agent_step`` of ``env_status``: 0 is the
 first step the agent chooses).
+
+``steps_at_position`` and ``feedback_mean`` came later: a file without them still loads (the
+analysis treats them as unknown), and ``refresh_records`` rebuilds such files from their run
+folders.
 """
 
 import csv
 import json
 import os
 from pathlib import Path
-from typing import Dict, List, Mapping, Optional, Sequence
+from typing import Dict, List, Mapping, Optional, Sequence, Tuple
 
 from attention_bringup.params import load_params_file, node_params, ParamsFileError
 from attention_bringup.report import PARAMS_FILE, PROGRESS_FILE, SUMMARY_FILE
@@ -94,6 +98,15 @@ def first_visits(rows: Sequence[Mapping[str, int]]) -> Dict[int, Optional[int]]:
         if position in first and first[position] is None:
             first[position] = row['agent_step']
     return first
+
+
+def steps_at_position(rows: Sequence[Mapping[str, int]]) -> Dict[str, int]:
+    """Count the recorded steps at each position index (-1: near none of them)."""
+    counts = dict.fromkeys((-1,) + POSITIONS, 0)
+    for row in rows:
+        position = row['position'] if row['position'] in counts else -1
+        counts[position] += 1
+    return {str(position): n for position, n in counts.items()}
 
 
 def furthest_curve(rows: Sequence[Mapping[str, int]], budget: int,
@@ -207,11 +220,13 @@ def build_record(condition: str, seed: int, budget: int, run_dir: Path,
         'parallel': parallel,
         'furthest_position': max(visited) if visited else -1,
         'first_step_at_position': {str(p): step for p, step in first.items()},
+        'steps_at_position': steps_at_position(rows),
         'key_pickups': keys,
         'key': keys > 0,
         'episodes': summary.get('episodes', len({row['episode'] for row in rows})),
         'lives_lost': summary.get('lives_lost', lives_lost_in(rows)),
         'feedback_count': summary.get('feedback_count'),
+        'feedback_mean': summary.get('feedback_mean'),
         'utterance_count': summary.get('utterance_count'),
         'saliency_count': summary.get('message_counts', {}).get('saliency'),
         'learner_updates': summary.get('metrics', {}).get('train/updates'),
@@ -248,3 +263,54 @@ def load_records(out_dir: Path, conditions: Sequence[str]) -> Dict[str, List[dic
             records.append(record)
         found[condition] = sorted(records, key=lambda r: r['seed'])
     return found
+
+
+def stored_run_dir(record: Mapping, base_dir: Path) -> Path:
+    """Return a record's run folder: ``run_dir`` as stored, if relative then under ``base_dir``."""
+    return Path(base_dir) / record['run_dir']  # an absolute run_dir replaces base_dir
+
+
+def rebuild_record(record: Mapping, run_dir: Path) -> dict:
+    """Build ``record`` again from ``run_dir``, keeping what only the runner knew."""
+    fresh = build_record(record['condition'], record['seed'], record['budget'], run_dir,
+                         record.get('exit_code'), record.get('wall_time_s') or 0.0,
+                         timed_out=record.get('outcome') == TIMEOUT,
+                         started_at=record.get('started_at', ''),
+                         parallel=record.get('parallel', 1))
+    fresh['run_dir'] = record['run_dir']
+    return fresh
+
+
+SAME_TRIAL_FIELDS = ('outcome', 'steps', 'first_step_at_position')
+"""A rebuilt record must agree on these, or its run folder holds another run by now."""
+
+
+def refresh_records(out_dir: Path, conditions: Sequence[str], base_dir: Path
+                    ) -> Tuple[List[Path], Dict[Path, str]]:
+    """
+    Rebuild every ``trials/<condition>/seed*.json`` from its run folder, in place.
+
+    ``retried/`` files are left alone. A file is skipped (and kept as it was) when it is not
+    readable, its run folder is gone, or the rebuilt record disagrees on ``SAME_TRIAL_FIELDS``.
+    Returns (refreshed files, {skipped file: why}).
+    """
+    refreshed: List[Path] = []
+    skipped: Dict[Path, str] = {}
+    for condition in conditions:
+        for path in sorted((Path(out_dir) / 'trials' / condition).glob('seed*.json')):
+            record = read_json(path)
+            if record is None or record.get('format') != FORMAT or not record.get('run_dir'):
+                skipped[path] = f'not a trial result file of format {FORMAT}'
+                continue
+            run_dir = stored_run_dir(record, base_dir)
+            if not run_dir.is_dir():
+                skipped[path] = f'run folder {run_dir} not found'
+                continue
+            fresh = rebuild_record(record, run_dir)
+            changed = [f for f in SAME_TRIAL_FIELDS if fresh.get(f) != record.get(f)]
+            if changed:
+                skipped[path] = f'run folder {run_dir} differs now ({", ".join(changed)})'
+                continue
+            write_json(path, fresh)
+            refreshed.append(path)
+    return refreshed, skipped
