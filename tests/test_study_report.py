@@ -235,3 +235,21 @@ def test_existing_results_are_skipped_without_the_launcher(tmp_path, capsys, no_
 def test_every_condition_has_a_description(condition):
     from attention_bringup.study.report import CONDITION_TEXT
     assert CONDITION_TEXT[condition]
+
+
+def test_hidden_agent_progress_is_compared_in_lives_and_feedback(tmp_path, no_figures):
+    records = []
+    for seed in range(3):
+        records.append(synthetic_record('vanilla', seed, route(100, 2), at={0: 1000}, h=0.8))
+        hidden = synthetic_record('hidden_agent', seed, route(100, 2), at={-1: 1000}, h=-0.1)
+        hidden['lives_lost'] = 100 + seed  # vanilla: 3, 4, 5
+        records.append(hidden)
+    write_study(tmp_path / 'study', records)
+    code, _, report = run_analysis(tmp_path, ['--conditions', 'vanilla', 'hidden_agent',
+                                              '--trials', '3'])
+    assert code == 0
+    paragraph = next(p for p in report.read_text().split('\n\n')
+                     if p.startswith('*Thesis: with the agent hidden'))
+    assert '**Disagrees**' in paragraph
+    assert ('it lost 101 lives per trial on average against 4 for vanilla, and its mean '
+            'feedback was -0.10 against +0.80') in paragraph

@@ -165,6 +165,7 @@ class EnvNode(Node):
                                 'episode over' if step.done else 'running')
         self._status_msg.header.stamp = stamp
         self._status_pub.publish(self._status_msg)
+        self._latency_ms = NO_LATENCY  # an answer is timed once (not again after a reset)
 
     def _publish_step(self, step: Step) -> None:
         """Publish a step the agent acts on; in lockstep it becomes the pending observation."""

@@ -205,8 +205,29 @@ def hidden_agent_paragraph(analysis: Mapping) -> str:
         verdict = ('**Agrees beyond position 0**: the agent got down the first ladder at most, '
                    'which the random warm-up and a greedy policy can do without seeing itself.')
     else:
-        verdict = '**Disagrees**: some hidden-agent trials made progress along the route.'
+        verdict = ('**Disagrees**: some hidden-agent trials made progress along the route.'
+                   + _hidden_agent_manner(analysis))
     return f'{text}. {verdict}'
+
+
+def _hidden_agent_manner(analysis: Mapping) -> str:
+    """Compare lives lost and mean h with vanilla: how the hidden agent got where it got."""
+    conditions = analysis['conditions']
+    if BASELINE not in conditions or not conditions[BASELINE]['usable']:
+        return ''
+    hidden, base = conditions['hidden_agent'], conditions[BASELINE]
+    lives = (hidden['lives_lost']['mean'], base['lives_lost']['mean'])
+    feedback = (hidden.get('where', {}).get('feedback_mean', {}).get('mean'),
+                base.get('where', {}).get('feedback_mean', {}).get('mean'))
+    if None in lives:
+        return ''
+    text = (f' It got there differently: it lost {lives[0]:.0f} lives per trial on average '
+            f'against {lives[1]:.0f} for vanilla')
+    if None not in feedback:
+        text += f', and its mean feedback was {feedback[0]:+.2f} against {feedback[1]:+.2f}'
+    return (text + '. That points to passes made while jumping and falling rather than a route '
+            'it learned (a position counts whenever the agent passes within 8 px of it, also '
+            'mid-fall).')
 
 
 def floor_effect_note(analysis: Mapping) -> str:
