@@ -178,17 +178,24 @@ class Launcher:
         """Wait until ``ready()``; return None, or (status, node) on a death or a timeout."""
         deadline = time.monotonic() + timeout_s
         while not ready():
-            if self.interrupts:
-                return 'interrupted', None
-            dead = group.first_exited()
-            if dead is not None:
-                self._report_dead(dead)
-                return 'node_failed', dead.name
+            ended = self._interrupted_or_dead(group)
+            if ended:
+                return ended
             if time.monotonic() > deadline:
                 self.err.write(f'attention_train: {what} after {timeout_s:.0f} s; node logs are '
                                f'in {self.plan.run_dir / "logs"}\n')
                 return 'stalled', None
             time.sleep(0.05)
+        return None
+
+    def _interrupted_or_dead(self, group: NodeGroup):
+        """Return (status, node) after Ctrl-C or a node's death (reported), else None."""
+        if self.interrupts:
+            return 'interrupted', None
+        dead = group.first_exited()
+        if dead is not None:
+            self._report_dead(dead)
+            return 'node_failed', dead.name
         return None
 
     def _write_pids(self, group: NodeGroup) -> None:
@@ -202,12 +209,9 @@ class Launcher:
         last_steps, last_change = -1, time.monotonic()
         last_line = 0.0
         while True:
-            if self.interrupts:
-                return 'interrupted', None
-            dead = group.first_exited()
-            if dead is not None:
-                self._report_dead(dead)
-                return 'node_failed', dead.name
+            ended = self._interrupted_or_dead(group)
+            if ended:
+                return ended
             with monitor.lock:
                 tracker = monitor.tracker
                 writer.write_new(tracker.rows)

@@ -18,14 +18,12 @@ written before these fields existed count as unknown (left out), not as zero.
 from typing import Dict, List, Mapping, Optional, Sequence
 
 from attention_bringup.study import stats
-from attention_bringup.study.trials import is_usable, POSITIONS
+from attention_bringup.study.trials import is_usable, PLACES, POSITIONS
 
 BASELINE = 'vanilla'
 TESTED_POSITIONS = (1, 2, 3)
 """Positions whose steps-to-reach are t-tested (the thesis's figures show 1 to 3)."""
 MEASURES = ('furthest_position',) + tuple(f'steps_to_{p}' for p in TESTED_POSITIONS)
-PLACES = (-1,) + POSITIONS
-"""Position indices of ``steps_at_position``: -1 (near none) and the critical positions."""
 SETTLED_SHARE = 0.5
 """A trial settled near a position if more than this share of its steps was spent there."""
 
@@ -161,7 +159,7 @@ def summarize_condition(condition: str, records: Sequence[Mapping]) -> dict:
         'outcomes': outcomes,
         'furthest_position': _estimate([r['furthest_position'] for r in usable]),
         'furthest_counts': {str(p): sum(1 for r in usable if r['furthest_position'] == p)
-                            for p in (-1,) + POSITIONS},
+                            for p in PLACES},
         'steps_to': steps_to,
         'key': _proportion(sum(1 for r in usable if r['key']), n),
         'episodes': _estimate([r['episodes'] for r in usable]),

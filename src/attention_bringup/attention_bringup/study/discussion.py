@@ -251,11 +251,16 @@ def _h_text(estimate: Mapping) -> str:
     return 'n/a' if estimate['mean'] is None else f'{estimate["mean"]:+.2f}'
 
 
+def _beyond_zero(share: Mapping) -> float:
+    """Share of steps near positions 1 to 5."""
+    return sum(share[str(p)] for p in POSITIONS[1:])
+
+
 def _split(where: Mapping) -> str:
     """Return 'near position 0 / near 1 to 5 / mean h' of a where-the-steps-go summary."""
     share = where['share']
-    later = sum(share[str(p)] for p in POSITIONS[1:])
-    return f'{_percent(share["0"])} / {_percent(later)} / {_h_text(where["feedback_mean"])}'
+    return (f'{_percent(share["0"])} / {_percent(_beyond_zero(share))} / '
+            f'{_h_text(where["feedback_mean"])}')
 
 
 REWARD_RULE = (
@@ -294,7 +299,6 @@ def reward_property_paragraph(analysis: Mapping) -> str:
     if not where or not where['n']:
         return ''
     share = where['share']
-    later = sum(share[str(p)] for p in POSITIONS[1:])
     per_condition = '; '.join(f'{c} {_split(s["where"])}'
                               for c, s in analysis['conditions'].items() if s['where']['n'])
     consequence = (
@@ -306,7 +310,8 @@ def reward_property_paragraph(analysis: Mapping) -> str:
     return ' '.join([
         REWARD_RULE,
         f'Over the {where["n"]} full trials with step counts, the agent spent on average '
-        f'{_percent(share["0"])} of its recorded steps near position 0, {_percent(later)} near '
+        f'{_percent(share["0"])} of its recorded steps near position 0, '
+        f'{_percent(_beyond_zero(share))} near '
         f'positions 1 to 5 and {_percent(share["-1"])} near none; mean h was '
         f'{_h_text(where["feedback_mean"])}. Per condition (near 0 / near 1 to 5 / mean h): '
         f'{per_condition}.',

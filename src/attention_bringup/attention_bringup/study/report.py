@@ -10,9 +10,9 @@ from pathlib import Path
 from typing import Mapping, Optional, Sequence
 
 from attention_bringup.study import discussion, stats
-from attention_bringup.study.analysis import BASELINE, MEASURES, PLACES, SETTLED_SHARE
+from attention_bringup.study.analysis import BASELINE, MEASURES, SETTLED_SHARE
 from attention_bringup.study.discussion import _num, fmt_p
-from attention_bringup.study.trials import POSITIONS
+from attention_bringup.study.trials import PLACES, POSITIONS
 
 CONDITION_TEXT = {
     'vanilla': 'Deep TAMER alone: alpha 0, no saliency, no utterances (the baseline).',
@@ -204,7 +204,7 @@ def results_tables(analysis: Mapping, conditions: Sequence[str]) -> str:
                              f'[{reachers["n"]}]')
         steps.append((f'`{c}`',) + tuple(cells))
     furthest = [(f'`{c}`',) + tuple(str(analysis['conditions'][c]['furthest_counts'][str(p)])
-                                    for p in (-1,) + POSITIONS) for c in present]
+                                    for p in PLACES) for c in present]
     return '\n'.join([
         '## Results',
         '',
@@ -225,7 +225,7 @@ def results_tables(analysis: Mapping, conditions: Sequence[str]) -> str:
         '',
         '### Furthest position reached: number of trials (-1: none)',
         '',
-        _table(('condition',) + tuple(str(p) for p in (-1,) + POSITIONS), furthest),
+        _table(('condition',) + tuple(str(p) for p in PLACES), furthest),
         '',
         where_table(analysis, present),
     ])

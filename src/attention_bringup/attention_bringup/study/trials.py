@@ -26,6 +26,8 @@ FORMAT = 1
 """Version of the result file layout."""
 POSITIONS = tuple(range(6))
 """The critical positions 0..5."""
+PLACES = (-1,) + POSITIONS
+"""Position indices of ``steps_at_position``: -1 (near none) and the critical positions."""
 CURVE_EVERY = 100
 """Agent steps between two points of the stored furthest-position curve."""
 TAIL_CHARS = 2500
@@ -102,7 +104,7 @@ def first_visits(rows: Sequence[Mapping[str, int]]) -> Dict[int, Optional[int]]:
 
 def steps_at_position(rows: Sequence[Mapping[str, int]]) -> Dict[str, int]:
     """Count the recorded steps at each position index (-1: near none of them)."""
-    counts = dict.fromkeys((-1,) + POSITIONS, 0)
+    counts = dict.fromkeys(PLACES, 0)
     for row in rows:
         position = row['position'] if row['position'] in counts else -1
         counts[position] += 1
@@ -251,12 +253,17 @@ def is_usable(record: Mapping) -> bool:
     return record.get('outcome') in USABLE_OUTCOMES
 
 
+def result_files(out_dir: Path, condition: str) -> List[Path]:
+    """Return ``<out>/trials/<condition>/seed*.json`` (not ``retried/``), sorted."""
+    return sorted((Path(out_dir) / 'trials' / condition).glob('seed*.json'))
+
+
 def load_records(out_dir: Path, conditions: Sequence[str]) -> Dict[str, List[dict]]:
     """Return every result file under ``<out>/trials/<condition>/``, sorted by seed."""
     found: Dict[str, List[dict]] = {}
     for condition in conditions:
         records = []
-        for path in sorted((Path(out_dir) / 'trials' / condition).glob('seed*.json')):
+        for path in result_files(out_dir, condition):
             record = read_json(path)
             if record is None or record.get('format') != FORMAT:
                 raise ValueError(f'{path}: not a trial result file of format {FORMAT}')
@@ -297,7 +304,7 @@ def refresh_records(out_dir: Path, conditions: Sequence[str], base_dir: Path
     refreshed: List[Path] = []
     skipped: Dict[Path, str] = {}
     for condition in conditions:
-        for path in sorted((Path(out_dir) / 'trials' / condition).glob('seed*.json')):
+        for path in result_files(out_dir, condition):
             record = read_json(path)
             if record is None or record.get('format') != FORMAT or not record.get('run_dir'):
                 skipped[path] = f'not a trial result file of format {FORMAT}'
