@@ -2,8 +2,8 @@
 
 from attention_common.stamps import frames_to_ns
 from env_node.core import (agent_box, EnvConfig, FRAME_HEIGHT, FRAME_WIDTH, MontezumaEnv,
-                           pixel_to_ram, RAM_INVENTORY, ram_to_pixel, RAM_X, RamState,
-                           read_ram_state)
+                           NO_ACTION, pixel_to_ram, RAM_INVENTORY, ram_to_pixel, RAM_X,
+                           RamState, read_ram_state, STANDING_POSES)
 from env_node.status import Counters, NO_LATENCY, parse_status, STATUS_KEYS, status_values
 import numpy as np
 import pytest
@@ -209,10 +209,30 @@ def test_room_exit_can_be_allowed():
     assert steps[-1].state.room != 1 and not steps[-1].done
 
 
+def test_steps_carry_the_action_applied_and_resets_none():
+    env = make_env()
+    first = env.reset()
+    step = env.step(5)
+    assert (first.action, step.action) == (NO_ACTION, 5)
+    env.close()
+
+
+def test_the_pose_shows_the_agent_climbing_the_ladder_and_walking():
+    # A fresh game: the agent stands on the top floor; DOWN at the ladder takes it onto the
+    # ladder (climbing pose), RIGHT on the platform below walks.
+    env = make_env(warmup_steps=0)
+    step = env.reset()
+    assert step.state.pose in STANDING_POSES
+    poses = [env.step(5).state.pose for _ in range(4)]
+    assert poses[-1] == 10 and all(p in STANDING_POSES for p in poses)
+    env.close()
+
+
 def test_read_ram_state_decodes_the_addresses():
     ram = np.zeros(128, np.uint8)
-    ram[[42, 43, 3, 58, 65]] = [77, 235, 1, 5, 0x02 | 0x40]
-    assert read_ram_state(ram) == RamState(x=77, y=235, room=1, lives=5, has_key=True)
+    ram[[42, 43, 3, 58, 65, 53, 47]] = [77, 235, 1, 5, 0x02 | 0x40, 10, 36]
+    assert read_ram_state(ram) == RamState(x=77, y=235, room=1, lives=5, has_key=True,
+                                           pose=10, skull_x=36)
     ram[65] = 0xFD
     assert not read_ram_state(ram).has_key
 

@@ -11,7 +11,8 @@ from attention_bringup.params import (
 from attention_bringup.plan import (
     build_plan, DEFAULT_STEPS, LaunchOptions, OVERRIDES_FILE, parse_options, REALTIME_RATE_HZ)
 from attention_bringup.progress import (
-    format_bar, parse_value, percentile, ProgressTracker)
+    ALIVE_STEPS, format_bar, parse_value, percentile, ProgressTracker)
+from feedback_node.teacher import TRAINERS
 import pytest
 
 BIN = Path('/opt/venv/bin')
@@ -166,12 +167,29 @@ def test_plan_overrides_follow_the_options(tmp_path):
     assert parse_params(plan.overrides_text()) == plan.overrides
 
 
-def test_plan_without_options_changes_only_budget_and_run_dir(tmp_path):
+def test_plan_without_options_changes_only_budget_run_dir_and_trainer(tmp_path):
     plan = _plan(tmp_path)
     # env_node waits for the graph's own listeners, as in the launch file: the launcher hears
     # env_status before the learners start, so it sees the first step without a wait of its own.
     assert plan.overrides == {'env_node': {'max_steps': DEFAULT_STEPS},
+                              'feedback_node': {'trainer': 'teacher'},
                               'tamer_node': {'run_dir': str(plan.run_dir)}}
+
+
+def test_the_thesis_trainer_is_one_option_away_and_human_like_is_named(tmp_path):
+    thesis = _plan(tmp_path, trainer='thesis')
+    assert thesis.effective['feedback_node']['trainer'] == 'thesis'
+    assert thesis.effective['feedback_node']['feedback_probability'] == 1.0
+    human = _plan(tmp_path, human_like=True)
+    feedback = human.effective['feedback_node']
+    assert feedback['trainer'] == 'teacher'
+    assert (feedback['feedback_probability'], feedback['feedback_delay_min'],
+            feedback['feedback_delay_max'], feedback['feedback_noise']) == (0.33, 0.3, 1.5, 0.1)
+    assert human.effective['tamer_node']['credit'] == 'window'
+    options = parse_options(['--trainer', 'thesis', '--human-like'])
+    assert (options.trainer, options.human_like) == ('thesis', True)
+    with pytest.raises(SystemExit):
+        parse_options(['--trainer', 'oracle'])
 
 
 def test_seed_of_the_run_dir_comes_from_the_files(tmp_path):
@@ -206,12 +224,14 @@ def test_launch_file_names_the_same_executables_and_files():
     assert constants['CONDITIONS'] == graph.CONDITIONS
     assert constants['GRAPH_FILE'] == graph.GRAPH_FILE
     assert constants['CONDITIONS_DIR'] == graph.CONDITIONS_DIR
+    assert constants['TRAINERS'] == TRAINERS
     functions = {node.name for node in tree.body if isinstance(node, ast.FunctionDef)}
     assert 'generate_launch_description' in functions
     defaults = {call.args[0].value: kw.value.value for call in ast.walk(tree)
                 if isinstance(call, ast.Call) and getattr(call.func, 'id', '') ==
                 'DeclareLaunchArgument' for kw in call.keywords if kw.arg == 'default_value'}
     assert defaults['condition'] == graph.DEFAULT_CONDITION
+    assert defaults['trainer'] == LaunchOptions().trainer
     for condition in graph.CONDITIONS:
         assert graph.condition_file(condition).is_file()
 
@@ -244,6 +264,32 @@ def test_tracker_rows_from_status_keep_the_furthest_and_the_latencies():
     assert tracker.first_step_at == {0: 1, 2: 2}
     assert tracker.lives_lost == 1 and tracker.episodes == {0, 1}
     assert tracker.latencies_ms == [3.5, 1.25]  # the first step answered nothing
+
+
+def test_tracker_counts_a_position_stood_on_only_when_held_and_alive_a_second_later():
+    tracker = ProgressTracker(position_of=lambda x, y: 2 if x > 100 else -1,
+                              standing_poses=frozenset({8}))
+    step = 0
+
+    def feed(x, pose, n=1, **values):
+        nonlocal step
+        for _ in range(n):
+            step += 1
+            tracker.on_status(step * 100, _status(step, x, pose=pose, episode=0, **values), 0.0)
+
+    feed(150, pose=6, n=3)             # passing position 2 in mid-jump: passed, not stood on
+    feed(150, pose=8, n=2)             # standing on it, ...
+    feed(50, pose=22, n=3)             # ... then dying
+    feed(50, pose=22, life_lost=True)
+    feed(50, pose=8, n=ALIVE_STEPS + 2)
+    assert tracker.furthest == 2 and tracker.furthest_stood == -1
+    feed(150, pose=8)                  # standing on it, alive ALIVE_STEPS steps later
+    feed(60, pose=8, n=ALIVE_STEPS)
+    assert tracker.furthest_stood == 2 and tracker.first_step_stood_at == {2: step - ALIVE_STEPS}
+    assert tracker.first_key_step is None
+    feed(60, pose=8, has_key=True)
+    feed(60, pose=8, n=2, has_key=True)
+    assert tracker.first_key_step == step - 2 and tracker.keys == 1
 
 
 def test_tracker_ignores_other_rooms_and_repeated_steps():

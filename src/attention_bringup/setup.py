@@ -30,6 +30,7 @@ setup(
         'console_scripts': [
             'attention_train = attention_bringup.launcher:main',
             'attention_study = attention_bringup.study.cli:main',
+            'attention_teaching = attention_bringup.teaching.cli:main',
         ],
     },
 )

@@ -94,12 +94,14 @@ class Launcher:
         from rclpy.signals import SignalHandlerOptions
 
         from attention_bringup.monitor import GraphMonitor, spin_until_shutdown
+        from env_node.core import STANDING_POSES
         from feedback_node.critical_positions import critical_position_at
 
         apply_to_this_process(self.domain_id)
         context = Context()
         rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)
-        tracker = ProgressTracker(position_of=critical_position_at)
+        tracker = ProgressTracker(position_of=critical_position_at,
+                                  standing_poses=STANDING_POSES)
         gallery = GalleryCollector()
         monitor = GraphMonitor(tracker, gallery, watch_plain=not self.plan.options.synthetic,
                                context=context)
@@ -110,8 +112,11 @@ class Launcher:
         spinner.start()
         writer = report.ProgressWriter(self.plan.run_dir / report.PROGRESS_FILE)
         group = NodeGroup(self._node_environ())
+        options = self.plan.options
+        trainer = (f'trainer {options.trainer}' + (', human-like' if options.human_like else '')
+                   if options.synthetic else 'a person trains')
         self._say(f'Run folder {self.plan.run_dir} (ROS domain {self.domain_id}); '
-                  f'{self.plan.options.condition}, {self.plan.options.steps} steps')
+                  f'{options.condition}, {trainer}, {options.steps} steps')
         try:
             status, failed = self._start_nodes(group, monitor)
             if status is None:
@@ -372,9 +377,15 @@ class Launcher:
             'episodes': len(tracker.episodes),
             'lives_lost': tracker.lives_lost,
             'keys': tracker.keys,
+            'first_key_step': tracker.first_key_step,
             'furthest_position': tracker.furthest,
             'first_step_at_position': {str(k): v for k, v in
                                        sorted(tracker.first_step_at.items())},
+            'furthest_position_stood': tracker.furthest_stood,
+            'first_step_stood_at_position': {str(k): v for k, v in
+                                             sorted(tracker.first_step_stood_at.items())},
+            'trainer': self.plan.options.trainer,
+            'human_like': self.plan.options.human_like,
             'feedback_count': feedback,
             'feedback_mean': round(tracker.counters.feedback_sum / feedback, 4) if feedback
             else 0.0,

@@ -16,6 +16,8 @@ from attention_bringup.graph import (
     base_params_files, CONDITIONS, DEFAULT_CONDITION, NODES)
 from attention_bringup.params import (
     dump_params, GraphParams, load_params_file, merge_params, node_params, NodeParams)
+from feedback_node.human_like import HUMAN_LIKE_SETTING
+from feedback_node.teacher import TRAINERS
 
 DEFAULT_STEPS = 10000
 """Agent steps of a default run (the thesis's trial): about 4 minutes on 2 busy CPU cores."""
@@ -46,6 +48,11 @@ class LaunchOptions:
     """Run folder (None: ``runs/<timestamp>-<condition>-seed<n>`` under the working directory)."""
     quiet: bool = False
     """No progress bar, only the final summary."""
+    trainer: str = 'teacher'
+    """feedback_node ``trainer``: 'teacher' (judges actions) or 'thesis' (equations 4.1/4.2)."""
+    human_like: bool = False
+    """The named human-like setting: feedback on a third of the steps, 0.3-1.5 s late, 10 %
+    wrong (``feedback_node.human_like.HUMAN_LIKE_SETTING``), credited by the tamer's window."""
 
 
 def positive_int(text: str) -> int:
@@ -80,6 +87,13 @@ def argument_parser() -> argparse.ArgumentParser:
     parser.add_argument('--run-dir', default=None,
                         help='run folder (default runs/<timestamp>-<condition>-seed<n>)')
     parser.add_argument('--quiet', action='store_true', help='no progress bar')
+    parser.add_argument('--trainer', choices=TRAINERS, default='teacher',
+                        help="the synthetic trainer: 'teacher' judges each action against the "
+                             "scripted expert's (default); 'thesis' gives h from the position "
+                             '(equations 4.1/4.2, as in the study)')
+    parser.add_argument('--human-like', dest='human_like', action='store_true',
+                        help='the trainer gives feedback on a third of the steps, 0.3 to 1.5 s '
+                             'late, 10%% of signs wrong; the tamer credits it with its window')
     return parser
 
 
@@ -130,6 +144,10 @@ def launcher_overrides(options: LaunchOptions, seed: int, run_dir: Path,
                 overrides[node]['seed'] = int(seed)
     if options.realtime:
         overrides['env_node']['rate_hz'] = REALTIME_RATE_HZ
+    overrides['feedback_node']['trainer'] = options.trainer
+    if options.human_like:
+        overrides['feedback_node'].update(vars(HUMAN_LIKE_SETTING))
+        overrides['tamer_node']['credit'] = 'window'  # late and plain: the window attributes it
     if not options.synthetic:
         overrides['feedback_node']['synthetic'] = False
         overrides['tamer_node']['credit'] = 'window'  # a person's feedback comes late

@@ -13,8 +13,13 @@ from typing import Callable, Dict, List, Mapping, Optional
 PROGRESS_COLUMNS = (
     'agent_step', 'sim_time_s', 'wall_time_s', 'episode', 'episode_step', 'lives', 'has_key',
     'reward', 'episode_return', 'x', 'y', 'room', 'position', 'furthest_position',
-    'feedback_count', 'feedback_sum', 'utterance_count', 'saliency_count',
+    'feedback_count', 'feedback_sum', 'utterance_count', 'saliency_count', 'pose',
+    'action', 'furthest_stood',
 )
+
+ALIVE_STEPS = 15
+"""A critical position counts as stood on when no life is lost in this many steps after (1 s
+of simulation time at frameskip 4)."""
 
 START_ROOM = 1  # RAM room number of Room 1; positions elsewhere are not Room 1's coordinates.
 
@@ -66,8 +71,18 @@ class ProgressTracker:
     finished: bool = False
     latencies_ms: List[float] = field(default_factory=list)
     """env_node's ``action_latency_ms`` of every step an answer led to."""
+    first_key_step: Optional[int] = None
+    """Agent step at which the key was first taken (None: never)."""
+    standing_poses: frozenset = frozenset()
+    """Poses (``env_status`` ``pose``) of an agent on the ground, a ladder or the rope; empty:
+    stood-on is not measured."""
+    furthest_stood: int = -1
+    """Furthest critical position stood on: within alpha, held by something (a standing pose),
+    alive ``ALIVE_STEPS`` steps later. ``furthest`` counts mere passing within alpha."""
+    first_step_stood_at: Dict[int, int] = field(default_factory=dict)
     _had_key: bool = False
     _last_stamp: int = -1
+    _candidates: List[tuple] = field(default_factory=list)
 
     def on_status(self, stamp_ns: int, values: Mapping[str, object], wall_s: float) -> None:
         """Take one ``env_status`` (parsed key-values); a step seen twice counts once."""
@@ -92,9 +107,12 @@ class ProgressTracker:
         has_key = bool(values.get('has_key', False))
         if has_key and not self._had_key:
             self.keys += 1
+            if self.first_key_step is None:
+                self.first_key_step = step
         self._had_key = has_key
         if values.get('life_lost'):
             self.lives_lost += 1
+        self._stand(position, step, values)
         if 'episode' in values:
             self.episodes.add(values['episode'])
         self.step_at_stamp[stamp_ns] = step
@@ -115,9 +133,25 @@ class ProgressTracker:
             'feedback_sum': round(self.counters.feedback_sum, 4),
             'utterance_count': self.counters.utterances,
             'saliency_count': self.counters.saliency,
+            'pose': values.get('pose', ''),
+            'action': values.get('action', ''),
+            'furthest_stood': self.furthest_stood,
         }
         self.rows.append(row)
         self.latest = dict(values)
+
+    def _stand(self, position: int, step: int, values: Mapping[str, object]) -> None:
+        """Confirm the candidates that stayed alive; a life lost (or a new episode) voids all."""
+        episode = values.get('episode')
+        if values.get('life_lost') or any(c[2] != episode for c in self._candidates):
+            self._candidates.clear()
+        while self._candidates and step - self._candidates[0][1] >= ALIVE_STEPS:
+            stood, at, _ = self._candidates.pop(0)
+            self.first_step_stood_at.setdefault(stood, at)
+            self.furthest_stood = max(self.furthest_stood, stood)
+        if position >= 0 and values.get('pose') in self.standing_poses and not values.get(
+                'life_lost'):
+            self._candidates.append((position, step, episode))
 
     @property
     def steps(self) -> int:

@@ -74,10 +74,13 @@ def summary_lines(summary: Mapping) -> List[str]:
                  else '')
     updates = metrics.get('train/updates')
     updates_text = f'{updates} learner updates' if updates is not None else 'learner'
+    first_key = summary.get('first_key_step')
+    key_text = (f'the key at step {first_key} ({summary.get("keys", 0)} in all)'
+                if first_key is not None else 'no key')
     return [
         f'{summary.get("steps", 0)} steps in {format_duration(summary.get("wall_time_s", 0))} '
         f'({summary.get("steps_per_s", 0):.1f} steps/s), {summary.get("episodes", 0)} episodes, '
-        f'{summary.get("keys", 0)} keys; {reached}',
+        f'{key_text}; {reached}',
         f'feedback {summary.get("feedback_count", 0)} '
         f'(mean h {summary.get("feedback_mean", 0):+.2f}), '
         f'utterances {summary.get("utterance_count", 0)}, saliency images '

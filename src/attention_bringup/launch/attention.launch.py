@@ -24,6 +24,7 @@ CONDITIONS = (
 )
 GRAPH_FILE = 'graph.yaml'
 CONDITIONS_DIR = 'conditions'
+TRAINERS = ('teacher', 'thesis')
 
 
 def _nodes(context):
@@ -36,8 +37,12 @@ def _nodes(context):
     user_file = LaunchConfiguration('params_file').perform(context)
     if user_file:
         files.append(user_file)
+    trainer = LaunchConfiguration('trainer').perform(context)
+    if trainer not in TRAINERS:
+        raise RuntimeError(f'unknown trainer {trainer!r} (one of: {", ".join(TRAINERS)})')
     overrides = {
         'env_node': {'max_steps': int(LaunchConfiguration('max_steps').perform(context))},
+        'feedback_node': {'trainer': trainer},
         'tamer_node': {'run_dir': LaunchConfiguration('run_dir').perform(context)},
     }
     return [Node(package=name, executable=name, name=name, output='screen',
@@ -49,6 +54,8 @@ def generate_launch_description():
     return LaunchDescription([
         DeclareLaunchArgument('condition', default_value='language',
                               description='Study condition: ' + ', '.join(CONDITIONS)),
+        DeclareLaunchArgument('trainer', default_value='teacher',
+                              description="feedback_node's trainer: " + ', '.join(TRAINERS)),
         DeclareLaunchArgument('params_file', default_value='',
                               description='Your parameter file, applied last (optional)'),
         DeclareLaunchArgument('max_steps', default_value='0',

@@ -26,6 +26,16 @@ gym.register_envs(ale_py)
 # RAM addresses (checked against rendered frames; see tests/test_env_core.py).
 RAM_X, RAM_Y, RAM_ROOM, RAM_LIVES, RAM_INVENTORY = 42, 43, 3, 58, 65
 KEY_BIT = 0x02  # inventory bit set while the agent carries the key
+RAM_POSE = 53
+"""The sprite the game draws for the agent (what a person sees it doing): 8 standing, 18
+walking, 10 and 0 climbing a ladder, 6 jumping or falling, 4 and 14 on the rope, 22 and 30
+dying (read off the expert's route; ``feedback_node.action_effects`` measures what it means)."""
+STANDING_POSES = frozenset((8, 18, 10, 0, 4, 14))
+"""Poses of an agent held by something: the ground (standing, walking), a ladder, the rope."""
+RAM_SKULL_X = 47
+"""The rolling skull's x (one pixel per step between 22 and 72 in Room 1)."""
+NO_ACTION = -1
+"""``Step.action`` of a step no agent action led to (a reset, the start after warm-up)."""
 
 FRAME_HEIGHT, FRAME_WIDTH = 210, 160
 
@@ -96,6 +106,10 @@ class RamState(NamedTuple):
     room: int
     lives: int
     has_key: bool
+    pose: int = -1
+    """``RAM_POSE``: the agent's sprite (standing, walking, climbing, jumping, dying, ...)."""
+    skull_x: int = -1
+    """``RAM_SKULL_X``: where the skull is (a person sees it on screen)."""
 
 
 class Step(NamedTuple):
@@ -119,6 +133,8 @@ class Step(NamedTuple):
     """Simulation time: emulator frames since the trial began, at 60 Hz."""
     episode_return: float = 0.0
     """Sum of the game rewards of this episode so far, this step's included."""
+    action: int = NO_ACTION
+    """The agent action applied to reach this step (``NO_ACTION`` after a reset)."""
 
     @property
     def done(self) -> bool:
@@ -129,7 +145,8 @@ class Step(NamedTuple):
 def read_ram_state(ram: np.ndarray) -> RamState:
     """Decode the study's variables from the 128 bytes of Atari RAM."""
     return RamState(x=int(ram[RAM_X]), y=int(ram[RAM_Y]), room=int(ram[RAM_ROOM]),
-                    lives=int(ram[RAM_LIVES]), has_key=bool(ram[RAM_INVENTORY] & KEY_BIT))
+                    lives=int(ram[RAM_LIVES]), has_key=bool(ram[RAM_INVENTORY] & KEY_BIT),
+                    pose=int(ram[RAM_POSE]), skull_x=int(ram[RAM_SKULL_X]))
 
 
 class MontezumaEnv:
@@ -193,7 +210,7 @@ class MontezumaEnv:
         if self._needs_reset:
             raise RuntimeError('the episode is over (or never began): call reset() first')
         self._agent_step += 1
-        return self._advance(int(action))
+        return self._advance(int(action))._replace(action=int(action))
 
     def _advance(self, action: int) -> Step:
         observation, reward, terminated, truncated, info = self._env.step(action)

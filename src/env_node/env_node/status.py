@@ -13,13 +13,14 @@ STATUS_NAME = 'env_node'
 """``DiagnosticStatus.name`` of every env_status message."""
 
 INT_KEYS = ('agent_step', 'episode', 'episode_step', 'lives', 'room', 'x', 'y', 'timeouts',
-            'dropped_actions', 'bad_actions')
+            'dropped_actions', 'bad_actions', 'action', 'pose', 'skull_x')
 FLOAT_KEYS = ('reward', 'episode_return', 'action_latency_ms')
 BOOL_KEYS = ('has_key', 'terminated', 'truncated', 'life_lost', 'finished')
 
 STATUS_KEYS = ('agent_step', 'episode', 'episode_step', 'lives', 'has_key', 'reward',
                'episode_return', 'terminated', 'truncated', 'life_lost', 'room', 'x', 'y',
-               'timeouts', 'dropped_actions', 'bad_actions', 'finished', 'action_latency_ms')
+               'timeouts', 'dropped_actions', 'bad_actions', 'finished', 'action_latency_ms',
+               'action', 'pose', 'skull_x')
 """Every key, in the order the node publishes them."""
 
 NO_LATENCY = -1.0
@@ -61,6 +62,7 @@ def status_values(step: Step, counters: Counters, finished: bool,
         'timeouts': counters.timeouts, 'dropped_actions': counters.dropped_actions,
         'bad_actions': counters.bad_actions, 'finished': finished,
         'action_latency_ms': round(action_latency_ms, 3),
+        'action': step.action, 'pose': state.pose, 'skull_x': state.skull_x,
     }
     return [(key, _text(values[key])) for key in STATUS_KEYS]
 

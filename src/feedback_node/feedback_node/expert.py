@@ -26,7 +26,8 @@ import numpy as np
 A = {name: index for index, name in enumerate(ACTION_MEANINGS)}
 NOOP, FIRE, UP, RIGHT, LEFT, DOWN = A['NOOP'], A['FIRE'], A['UP'], A['RIGHT'], A['LEFT'], A['DOWN']
 RIGHTFIRE, LEFTFIRE = A['RIGHTFIRE'], A['LEFTFIRE']
-_FIRE_ACTIONS = frozenset((FIRE, RIGHTFIRE, LEFTFIRE))
+FIRE_ACTIONS = frozenset(a for a, name in enumerate(ACTION_MEANINGS) if 'FIRE' in name)
+"""Every action that presses the button (fire acts on a press, not while held)."""
 
 # Floors (RAM y grows upward).
 TOP_Y, PLATFORM_Y, FLOOR_Y = 235, 192, 148
@@ -55,6 +56,7 @@ SKULL_JUMP_GAP = 47
 SKULL_WAIT_GAP = 60
 SKULL_PASSED_GAP = 20  # below this the agent is already past the skull
 SKULL_JUMP_MAX = 65    # a skull beyond this turns around mid-jump: wait for its next pass
+SKULL_GONE_STEPS = 3   # a skull x seen unchanged this many steps in a row: it has vanished
 # skull_x_from_frame: the skull is the only pure-grey sprite on the floor rows of a frame.
 _SKULL_ROWS = slice(160, 186)
 _SKULL_COLOUR = (236, 236, 236)
@@ -141,20 +143,30 @@ class RoomOneExpert:
     def reset(self) -> None:
         """Call at the start of every episode (a fresh game, before its first ``act``)."""
         self.skull.reset()
+        self._seen_skull: Optional[float] = None
+        self._skull_still = 0
         self.phase: Optional[Phase] = None
         self._last_action = NOOP
 
-    def act(self, state, skull_x: Optional[float] = None) -> int:
+    def act(self, state, skull_x: Optional[float] = None,
+            previous_action: Optional[int] = None) -> int:
         """
         Return the ALE action for ``state`` (a RamState: x, y, has_key).
 
         ``skull_x`` is the skull's ram[47] if the caller sees it; without it the tracker
         predicts it (exact for a fresh game played without losing a life).
+        ``previous_action``: the action actually taken at the step before, when someone else
+        plays (the teacher judging a learner); fire acts on a press, so it matters.
         """
+        if previous_action is not None:
+            self._last_action = int(previous_action)
         skull = self.skull.update(skull_x)
+        if skull_x is not None:
+            self._skull_still = self._skull_still + 1 if skull_x == self._seen_skull else 0
+            self._seen_skull = skull_x
         self.phase = phase_of(state)
         action = self._action(self.phase, int(state.x), int(state.y), skull)
-        if self._last_action in _FIRE_ACTIONS and action in _FIRE_ACTIONS:
+        if self._last_action in FIRE_ACTIONS and action in FIRE_ACTIONS:
             action = NOOP  # fire acts on a press: let go for one step first
         self._last_action = action
         return action
@@ -178,9 +190,21 @@ class RoomOneExpert:
             return FIRE if x <= KEY_JUMP_X else LEFT
         return NOOP
 
+    @property
+    def skull_gone(self) -> bool:
+        """
+        Tell whether the skull seen has not moved for ``SKULL_GONE_STEPS`` steps: it is gone.
+
+        A rolling skull moves every step but one at each end of its path; once it has killed
+        the agent it vanishes from the room and its RAM x stays where it was.
+        """
+        return self._skull_still >= SKULL_GONE_STEPS
+
     def _cross_floor(self, x: int, skull: int) -> int:
         if x <= LEFT_LADDER_X + 1:
             return UP
+        if self.skull_gone:
+            return LEFT
         gap = x - skull
         if gap <= SKULL_PASSED_GAP:
             return LEFT

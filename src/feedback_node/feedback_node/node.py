@@ -1,5 +1,9 @@
 """
-feedback_node: the thesis's synthetic trainer over topics, or a listener when a person trains.
+feedback_node: a synthetic trainer over topics, or a listener when a person trains.
+
+``trainer`` chooses which: ``thesis`` (equations 4.1/4.2 on the agent's position, every study
+condition) or ``teacher`` (judges each action against the scripted expert's, from
+``env_status``: ``feedback_node.teacher``).
 
 Subscribes ``agent_position``. With ``synthetic`` true, for every position (step T') it
 publishes the feedback judging the action of the previous step T (``feedback_stamped``, stamp T,
@@ -17,7 +21,9 @@ from attention_common.node_main import run_node, StartupError
 from attention_common.parameters import declare_parameters
 from attention_common.stamps import NS_PER_S, ns_to_stamp, stamp_to_ns
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from env_node.status import parse_status, STATUS_NAME
 from feedback_node.human_input import excerpt, feedback_problem, utterance_problem
+from feedback_node.teacher import SeenStep, Teacher, TeacherConfig, TRAINERS
 from feedback_node.trainer import SyntheticTrainer, TrainerConfig
 from feedback_node.utterances import Utterance
 from geometry_msgs.msg import PointStamped, Vector3Stamped
@@ -31,6 +37,9 @@ SUMMARY_PERIOD_S = 30.0
 
 # name: (default, description). Floats accept an integer too (utterance_interval:=0).
 PARAMETERS = {
+    'trainer': ('thesis', "'thesis': h from the position (equations 4.1/4.2, the study); "
+                          "'teacher': +1 when the action does what the expert's would, -1 "
+                          'otherwise, nothing while no action can matter.'),
     'synthetic': (True, 'true: the synthetic trainer speaks and judges; false: a person does '
                         '(ros2 topic pub), this node only logs what it hears. Settable at run '
                         'time.'),
@@ -53,6 +62,11 @@ PARAMETERS = {
 }
 
 
+TEACHER_PARAMETERS = ('utterance_interval', 'feedback_probability', 'feedback_delay_min',
+                      'feedback_delay_max', 'feedback_noise', 'seed')
+"""The parameters the teacher uses (the others are the thesis trainer's reward)."""
+
+
 class FeedbackNode(Node):
     """The synthetic trainer (section 4.1, Figure 5.1) as a node."""
 
@@ -60,15 +74,23 @@ class FeedbackNode(Node):
         super().__init__('feedback_node', **kwargs)
         params = declare_parameters(self, PARAMETERS, runtime=('synthetic',))
         self._synthetic = bool(params.pop('synthetic'))
+        self._kind = params.pop('trainer')
+        if self._kind not in TRAINERS:
+            raise StartupError(f'trainer must be one of {TRAINERS}, got {self._kind!r}')
         try:
-            self._config = TrainerConfig(**params)
-            self._trainer = SyntheticTrainer(self._config)
-        except ValueError as error:
+            if self._kind == 'teacher':
+                self._config = TeacherConfig(**{k: params[k] for k in TEACHER_PARAMETERS})
+                self._trainer = Teacher(self._config)
+            else:
+                self._config = TrainerConfig(**params)
+                self._trainer = SyntheticTrainer(self._config)
+        except (ValueError, OSError) as error:
             raise StartupError(str(error)) from None
         self._now_ns = None  # the newest step stamp heard: this node's "now"
         self._restarts_logged = 0
-        self._counts = {'bad_positions': 0, 'heard_utterances': 0, 'heard_feedback': 0,
-                        'bad_utterances': 0, 'bad_feedback': 0, 'utterances': 0}
+        self._counts = {'bad_positions': 0, 'bad_status': 0, 'heard_utterances': 0,
+                        'heard_feedback': 0, 'bad_utterances': 0, 'bad_feedback': 0,
+                        'utterances': 0}
 
         self._feedback_stamped_pub = self.create_publisher(
             Vector3Stamped, topics.FEEDBACK_STAMPED, qos.HUMAN)
@@ -78,6 +100,9 @@ class FeedbackNode(Node):
         self._utterance_pub = self.create_publisher(String, topics.UTTERANCE, qos.HUMAN)
         self.create_subscription(PointStamped, topics.AGENT_POSITION, self._on_position,
                                  qos.STEP_DATA)
+        if self._kind == 'teacher':
+            self.create_subscription(DiagnosticArray, topics.ENV_STATUS, self._on_status,
+                                     qos.STEP_DATA)
         self.create_subscription(String, topics.UTTERANCE, self._on_heard_utterance, qos.HUMAN)
         self.create_subscription(Float32, topics.FEEDBACK, self._on_heard_feedback, qos.HUMAN)
         self.add_on_set_parameters_callback(self._on_set_parameters)
@@ -92,6 +117,13 @@ class FeedbackNode(Node):
         c = self._config
         interval = ('off' if c.utterance_interval < 0 else 'every step'
                     if c.utterance_interval == 0 else f'every {c.utterance_interval:g} s')
+        human = (f'feedback probability {c.feedback_probability:g}, '
+                 f'delay {c.feedback_delay_min:g}-{c.feedback_delay_max:g} s, '
+                 f'noise {c.feedback_noise:g}')
+        if self._kind == 'teacher':
+            plain = ' (plain feedback only: it comes late)' if c.delayed else ''
+            return ("teacher: judges each action against the expert's, utterances "
+                    f'{interval}, {human}{plain}')
         return (f'synthetic trainer, reward {c.reward_variant} (alpha {c.alpha_threshold:g}, '
                 f'beta {c.beta_threshold:g}, stationary {c.stationary_steps} steps), '
                 f'utterances {interval}, feedback probability {c.feedback_probability:g}, '
@@ -119,7 +151,7 @@ class FeedbackNode(Node):
             self.get_logger().error(f'agent_position dropped: x={x}, y={y} is not finite')
             return
         self._now_ns = stamp_ns
-        if not self._synthetic:
+        if not self._synthetic or self._kind != 'thesis':
             return
         out = self._trainer.on_position(stamp_ns, x, y)
         if self._trainer.counts['restarts'] > self._restarts_logged:
@@ -128,13 +160,46 @@ class FeedbackNode(Node):
                 f'agent_position stamps went back (now {stamp_ns} ns): a new trial, '
                 'starting the trainer over')
         for feedback in out.feedback:
+            self._publish_feedback(feedback.stamp_ns, feedback.h, feedback.position,
+                                   feedback.distance)
+        if out.utterance is not None:
+            self._publish_utterance(out.utterance)
+
+    def _publish_feedback(self, stamp_ns: int, h: float, y: float, z: float) -> None:
+        """feedback_stamped (unless it comes late, as a person's would), then plain feedback."""
+        if not (self._kind == 'teacher' and self._config.delayed):
             msg_out = Vector3Stamped()
-            msg_out.header.stamp = ns_to_stamp(feedback.stamp_ns)
-            msg_out.vector.x = float(feedback.h)
-            msg_out.vector.y = float(feedback.position)
-            msg_out.vector.z = float(feedback.distance)
+            msg_out.header.stamp = ns_to_stamp(stamp_ns)
+            msg_out.vector.x, msg_out.vector.y, msg_out.vector.z = float(h), float(y), float(z)
             self._feedback_stamped_pub.publish(msg_out)
-            self._feedback_pub.publish(Float32(data=float(feedback.h)))
+        self._feedback_pub.publish(Float32(data=float(h)))
+
+    # -- the teacher --------------------------------------------------------------------------
+
+    def _on_status(self, msg: DiagnosticArray) -> None:
+        try:
+            status = next(s for s in msg.status if s.name == STATUS_NAME)
+            values = parse_status((kv.key, kv.value) for kv in status.values)
+            seen = SeenStep(stamp_ns=stamp_to_ns(msg.header.stamp), x=values['x'],
+                            y=values['y'], has_key=values['has_key'], pose=values['pose'],
+                            skull_x=values['skull_x'], action=values['action'],
+                            episode=values['episode'])
+        except (StopIteration, KeyError, ValueError) as error:
+            self._counts['bad_status'] += 1
+            self.get_logger().error(f'env_status dropped: not an {STATUS_NAME} status with the '
+                                    f'keys the teacher needs ({error!r})')
+            return
+        self._now_ns = seen.stamp_ns
+        if not self._synthetic:
+            return
+        out = self._trainer.on_step(seen)
+        if self._trainer.counts['restarts'] > self._restarts_logged:
+            self._restarts_logged = self._trainer.counts['restarts']
+            self.get_logger().warning(f'env_status stamps went back (now {seen.stamp_ns} ns): '
+                                      'a new trial, starting the teacher over')
+        for judgement in out.feedback:
+            self._publish_feedback(judgement.stamp_ns, judgement.h, judgement.expert_action,
+                                   judgement.action)
         if out.utterance is not None:
             self._publish_utterance(out.utterance)
 
@@ -181,8 +246,9 @@ class FeedbackNode(Node):
         self.get_logger().info(f'a person gave feedback {msg.data:+g} {self._now_text()}')
 
     def _log_summary(self) -> None:
-        summary = dict(self._counts, **self._trainer.counts,
-                       withheld_utterances=self._trainer.utterances.withheld)
+        summary = dict(self._counts, **self._trainer.counts)
+        if self._kind == 'thesis':
+            summary['withheld_utterances'] = self._trainer.utterances.withheld
         if summary != self._last_summary:
             self._last_summary = summary
             self.get_logger().info(

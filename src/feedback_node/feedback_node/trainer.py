@@ -17,17 +17,15 @@ consequence is seen; the feedback keeps the stamp of the step it judges), and so
 """
 
 from dataclasses import dataclass
-import heapq
-from typing import List, NamedTuple, Optional, Tuple
+from typing import List, NamedTuple, Optional
 
-from attention_common.stamps import NS_PER_S
+from feedback_node.human_like import FeedbackScheduler, HumanLike
 from feedback_node.reward import RewardConfig, RewardFunction
 from feedback_node.utterances import Utterance, UtteranceGenerator
-import numpy as np
 
 
 @dataclass
-class TrainerConfig:
+class TrainerConfig(HumanLike):
     """Parameters of the synthetic trainer; the node's ROS parameters carry the same names."""
 
     alpha_threshold: float = 8.0
@@ -42,25 +40,8 @@ class TrainerConfig:
     """Seconds of simulation time between utterances; 0 = every step; negative = never."""
     stuck_buffer_steps: int = 10
     """Length of the position buffer of the stuck rule."""
-    feedback_probability: float = 1.0
-    """Probability that a step gets feedback at all."""
-    feedback_delay_min: float = 0.0
-    """Shortest delay (simulation seconds) before feedback is given."""
-    feedback_delay_max: float = 0.0
-    """Longest delay; the delay is uniform between the two."""
-    feedback_noise: float = 0.0
-    """Probability that the sign of h is flipped."""
     seed: int = 0
-    """Seeds the human-like draws."""
-
-    def __post_init__(self):
-        for name in ('feedback_probability', 'feedback_noise'):
-            value = getattr(self, name)
-            if not 0.0 <= value <= 1.0:
-                raise ValueError(f'{name} must be in [0, 1], got {value}')
-        if not 0.0 <= self.feedback_delay_min <= self.feedback_delay_max:
-            raise ValueError('need 0 <= feedback_delay_min <= feedback_delay_max, got '
-                             f'{self.feedback_delay_min} and {self.feedback_delay_max}')
+    """Seeds the human-like draws (``feedback_probability``, delay, noise: ``HumanLike``)."""
 
     def reward_config(self) -> RewardConfig:
         return RewardConfig(alpha_threshold=self.alpha_threshold,
@@ -103,34 +84,37 @@ class SyntheticTrainer:
             interval_s=self.config.utterance_interval,
             stuck_buffer_steps=self.config.stuck_buffer_steps,
             radius=self.config.alpha_threshold)
-        self._rng = np.random.default_rng(self.config.seed)
-        self.counts = {'positions': 0, 'judged': 0, 'given': 0, 'skipped': 0, 'flipped': 0,
-                       'unjudged_jumps': 0, 'duplicates': 0, 'restarts': 0}
+        self.scheduler = FeedbackScheduler(self.config, self.config.seed)
+        self._counts = {'positions': 0, 'judged': 0, 'unjudged_jumps': 0, 'duplicates': 0,
+                        'restarts': 0}
         self.reset()
+
+    @property
+    def counts(self) -> dict:
+        return dict(self._counts, **self.scheduler.counts)
 
     def reset(self) -> None:
         """Forget the trial so far (pending delayed feedback too)."""
         self.reward.reset()
         self.utterances.reset()
         self._last_ns: Optional[int] = None
-        self._pending: List[Tuple[int, int, Feedback]] = []
-        self._sequence = 0
+        self.scheduler.clear()
 
     def on_position(self, stamp_ns: int, x: float, y: float) -> TrainerOutput:
         """Take the agent's position at step ``stamp_ns``; return what to publish now."""
         if self._last_ns is not None and stamp_ns == self._last_ns:
-            self.counts['duplicates'] += 1  # the same step again (a re-send): already judged
+            self._counts['duplicates'] += 1  # the same step again (a re-send): already judged
             return TrainerOutput(feedback=self._release(stamp_ns), utterance=None)
         if self._last_ns is not None and stamp_ns < self._last_ns:
-            self.counts['restarts'] += 1  # stamps went back: a new trial started
+            self._counts['restarts'] += 1  # stamps went back: a new trial started
             self.reset()
-        self.counts['positions'] += 1
+        self._counts['positions'] += 1
         judgement = self.reward(x, y)
         if self._last_ns is not None:
             if judgement.teleported:
-                self.counts['unjudged_jumps'] += 1
+                self._counts['unjudged_jumps'] += 1
             else:
-                self.counts['judged'] += 1
+                self._counts['judged'] += 1
                 self._consider(Feedback(stamp_ns=self._last_ns, h=float(judgement.h),
                                         position=judgement.position,
                                         distance=judgement.distance, seen_ns=stamp_ns))
@@ -141,27 +125,10 @@ class SyntheticTrainer:
     @property
     def pending(self) -> int:
         """Delayed feedback not given yet."""
-        return len(self._pending)
+        return self.scheduler.pending
 
     def _consider(self, feedback: Feedback) -> None:
-        config = self.config
-        if config.feedback_probability < 1.0 and self._rng.random() >= config.feedback_probability:
-            self.counts['skipped'] += 1
-            return
-        if config.feedback_noise > 0.0 and self._rng.random() < config.feedback_noise:
-            if feedback.h != 0.0:
-                feedback = feedback._replace(h=-feedback.h, flipped=True)
-                self.counts['flipped'] += 1
-        delay_s = config.feedback_delay_min
-        if config.feedback_delay_max > config.feedback_delay_min:
-            delay_s = self._rng.uniform(config.feedback_delay_min, config.feedback_delay_max)
-        due_ns = feedback.seen_ns + int(round(delay_s * NS_PER_S))
-        heapq.heappush(self._pending, (due_ns, self._sequence, feedback))
-        self._sequence += 1
+        self.scheduler.consider(feedback)
 
     def _release(self, now_ns: int) -> List[Feedback]:
-        due = []
-        while self._pending and self._pending[0][0] <= now_ns:
-            due.append(heapq.heappop(self._pending)[2])
-        self.counts['given'] += len(due)
-        return sorted(due, key=lambda feedback: feedback.stamp_ns)
+        return self.scheduler.release(now_ns)

@@ -30,6 +30,7 @@ from attention_bringup.study import analysis as study_analysis
 from attention_bringup.study import figures, report, runner
 from attention_bringup.study.trials import (
     is_usable, load_records, refresh_records, write_json)
+from feedback_node.teacher import TRAINERS
 
 DEFAULT_TRIALS = 10
 DEFAULT_STEPS = 10000
@@ -74,10 +75,21 @@ def argument_parser() -> argparse.ArgumentParser:
     parser.add_argument('--retry-crashed', action='store_true',
                         help='re-run trials recorded as crashed or timed out (their old result '
                              'files move to trials/<condition>/retried/ and stay in the report)')
+    parser.add_argument('--trainer', choices=TRAINERS, default='thesis',
+                        help="the synthetic trainer of every trial (default 'thesis', the "
+                             "study's; 'teacher' judges actions: docs/teaching.md)")
+    parser.add_argument('--human-like', dest='human_like', action='store_true',
+                        help='the human-like setting in every trial (attention_train '
+                             '--human-like)')
     parser.add_argument('--trial-timeout', type=float, default=0.0, metavar='S',
                         help='wall seconds before a trial is stopped and recorded as timed out '
                              '(default 0: 1800 + 1 s per step)')
     return parser
+
+
+def launcher_args(options: argparse.Namespace) -> List[str]:
+    """Return the attention_train options every trial gets besides its condition and seed."""
+    return ['--trainer', options.trainer] + (['--human-like'] if options.human_like else [])
 
 
 def default_runs_dir(out: str) -> str:
@@ -92,6 +104,10 @@ def regenerate_command(options: argparse.Namespace, parallel: int) -> str:
               '--parallel', str(parallel), '--out', options.out, '--report', options.report]
     if options.runs_dir != default_runs_dir(options.out):
         words += ['--runs-dir', options.runs_dir]
+    if options.trainer != 'thesis':
+        words += ['--trainer', options.trainer]
+    if options.human_like:
+        words.append('--human-like')
     return ' '.join(shlex.quote(word) for word in words)
 
 
@@ -132,7 +148,8 @@ class _Progress:
 def run_study(options: argparse.Namespace, out_dir: Path) -> Optional[dict]:
     """Run the pending trials; return the log entry (None if there was nothing to run)."""
     jobs, kept = runner.plan_trials(options.conditions, options.trials, options.steps, out_dir,
-                                    Path(options.runs_dir).resolve(), options.retry_crashed)
+                                    Path(options.runs_dir).resolve(), options.retry_crashed,
+                                    launcher_args(options))
     if kept:
         _say(f'{len(kept)} trial(s) already have results: skipped')
     if not jobs:

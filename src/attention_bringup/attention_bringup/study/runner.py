@@ -35,6 +35,8 @@ class TrialJob:
     steps: int
     result_path: Path
     run_dir: Path
+    launcher_args: Tuple[str, ...] = ()
+    """More ``attention_train`` options (the trainer, the human-like setting)."""
 
 
 def auto_timeout_s(steps: int) -> float:
@@ -43,7 +45,8 @@ def auto_timeout_s(steps: int) -> float:
 
 
 def plan_trials(conditions: Sequence[str], trials: int, steps: int, out_dir: Path,
-                runs_dir: Path, retry_crashed: bool = False
+                runs_dir: Path, retry_crashed: bool = False,
+                launcher_args: Sequence[str] = (), seeds: Optional[Sequence[int]] = None
                 ) -> Tuple[List[TrialJob], List[Path]]:
     """
     Return (trials to run, result files that exist and are kept).
@@ -52,11 +55,11 @@ def plan_trials(conditions: Sequence[str], trials: int, steps: int, out_dir: Pat
     unreadable one too (it is not silently overwritten).
     """
     pending, kept = [], []
-    for seed in range(trials):
+    for seed in (range(trials) if seeds is None else seeds):
         for condition in conditions:
             path = trial_path(out_dir, condition, seed)
             run_dir = Path(runs_dir) / condition / f'seed{seed}'
-            job = TrialJob(condition, seed, steps, path, run_dir)
+            job = TrialJob(condition, seed, steps, path, run_dir, tuple(launcher_args))
             if not path.exists():
                 pending.append(job)
                 continue
@@ -98,7 +101,8 @@ def load_retired(out_dir: Path, conditions: Sequence[str]) -> List[dict]:
 
 def launcher_command(launcher: Path, job: TrialJob) -> List[str]:
     return [str(launcher), '--steps', str(job.steps), '--condition', job.condition,
-            '--seed', str(job.seed), '--run-dir', str(job.run_dir), '--quiet']
+            '--seed', str(job.seed), '--run-dir', str(job.run_dir), '--quiet',
+            *job.launcher_args]
 
 
 def _signal(process: subprocess.Popen, sig: signal.Signals) -> None:

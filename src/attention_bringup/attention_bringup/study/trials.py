@@ -48,6 +48,10 @@ RECORDED_PARAMETERS = (
     ('env_node', 'seed'), ('env_node', 'warmup_steps'), ('env_node', 'max_steps'),
     ('env_node', 'frameskip'), ('env_node', 'sticky_actions'),
     ('feedback_node', 'utterance_interval'), ('feedback_node', 'reward_variant'),
+    ('feedback_node', 'trainer'), ('feedback_node', 'feedback_probability'),
+    ('feedback_node', 'feedback_delay_min'), ('feedback_node', 'feedback_delay_max'),
+    ('feedback_node', 'feedback_noise'), ('tamer_node', 'window_min_s'),
+    ('tamer_node', 'window_max_s'),
     ('saliency_node', 'mode'), ('saliency_node', 'require_utterance'),
     ('tamer_node', 'alpha'), ('tamer_node', 'input_image'), ('tamer_node', 'credit'),
     ('tamer_node', 'seed'),
@@ -232,6 +236,12 @@ def build_record(condition: str, seed: int, budget: int, run_dir: Path,
         'utterance_count': summary.get('utterance_count'),
         'saliency_count': summary.get('message_counts', {}).get('saliency'),
         'learner_updates': summary.get('metrics', {}).get('train/updates'),
+        'updates_per_step': summary.get('metrics', {}).get('train/updates_per_step'),
+        'first_key_step': summary.get('first_key_step', first_key_step(rows)),
+        'furthest_position_stood': summary.get('furthest_position_stood'),
+        'first_step_stood_at_position': summary.get('first_step_stood_at_position'),
+        'trainer': summary.get('trainer', 'thesis'),
+        'human_like': summary.get('human_like', False),
         'parameters': recorded_parameters(run_dir / PARAMS_FILE),
         'curve_every': CURVE_EVERY,
         'furthest_curve': furthest_curve(rows, budget),
@@ -247,6 +257,11 @@ def build_record(condition: str, seed: int, budget: int, run_dir: Path,
             'node_log_tail': read_tail(run_dir / 'logs' / f'{failed}.log') if failed else '',
         }
     return record
+
+
+def first_key_step(rows: Sequence[Mapping[str, int]]) -> Optional[int]:
+    """Return the agent step at which the key was first held (None: never)."""
+    return next((row['agent_step'] for row in rows if row['has_key'] == 1), None)
 
 
 def is_usable(record: Mapping) -> bool:

@@ -1,0 +1,121 @@
+"""
+``attention_teaching``: does Deep TAMER learn Room 1 from the teacher? Run and report.
+
+Every trial is the real four-process graph through ``attention_train`` (the study's runner),
+one per setting (``settings.SETTINGS``) and seed (``settings.SEEDS``, none used for tuning).
+Result files go to ``docs/teaching/<setting>/trials/<condition>/seed<k>.json`` as they finish,
+so an interrupted evaluation resumes with the same command; then ``docs/teaching.md`` is
+written from them (``--report-only`` skips running).
+"""
+
+import argparse
+import json
+import os
+from pathlib import Path
+import sys
+import threading
+import time
+from typing import List, Optional, Sequence
+
+from attention_bringup.plan import positive_int
+from attention_bringup.study import runner
+from attention_bringup.study.trials import load_records, write_json
+from attention_bringup.teaching import analysis, report
+from attention_bringup.teaching.settings import SEEDS, SETTINGS
+
+DEFAULT_OUT = 'docs/teaching'
+DEFAULT_REPORT = 'docs/teaching.md'
+DEFAULT_RUNS = 'runs/teaching'
+DEFAULT_STEPS = 10000
+LOG_FILE = 'teaching_log.json'
+
+
+def argument_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog='attention_teaching', description=__doc__.split('\n')[1])
+    parser.add_argument('--settings', nargs='+', choices=list(SETTINGS), default=list(SETTINGS),
+                        metavar='NAME', help=f'settings (default all: {" ".join(SETTINGS)})')
+    parser.add_argument('--seeds', type=int, nargs='+', default=list(SEEDS),
+                        help='trial seeds (default 1000..1009, never tuned on)')
+    parser.add_argument('--steps', type=positive_int, default=DEFAULT_STEPS)
+    parser.add_argument('--parallel', type=positive_int, default=2)
+    parser.add_argument('--out', default=DEFAULT_OUT)
+    parser.add_argument('--report', default=DEFAULT_REPORT)
+    parser.add_argument('--runs-dir', default=DEFAULT_RUNS,
+                        help='full run folders (large; not for committing)')
+    parser.add_argument('--report-only', action='store_true', help='run no trials')
+    return parser
+
+
+def _say(text: str) -> None:
+    sys.stderr.write(f'attention_teaching: {text}\n')
+    sys.stderr.flush()
+
+
+def plan(options) -> List[runner.TrialJob]:
+    jobs = []
+    for seed in options.seeds:  # seed-major: an interrupted run has every setting so far
+        for name in options.settings:
+            setting = SETTINGS[name]
+            pending, _ = runner.plan_trials(
+                [setting.condition], 0, options.steps, Path(options.out) / name,
+                Path(options.runs_dir) / name, launcher_args=setting.launcher_args,
+                seeds=[seed])
+            jobs += pending
+    return jobs
+
+
+def run(options) -> None:
+    jobs = plan(options)
+    if not jobs:
+        return
+    launcher = Path(sys.executable).parent / 'attention_train'
+    stop = threading.Event()
+    started = time.monotonic()
+
+    def progress(job, record, finished) -> None:
+        if record is None:
+            return
+        elapsed = time.monotonic() - started
+        _say(f'[{finished}/{len(jobs)}] {job.run_dir.parent.parent.name} seed {job.seed}: '
+             f'{record["outcome"]}, key at {record.get("first_key_step")}, furthest stood '
+             f'{record.get("furthest_position_stood")} '
+             f'(about {(len(jobs) - finished) * elapsed / finished / 60:.0f} min left)')
+
+    _say(f'running {len(jobs)} trial(s), {options.parallel} at a time')
+    try:
+        records = runner.run_trials(jobs, launcher, options.parallel,
+                                    runner.auto_timeout_s(options.steps), stop, progress)
+    except KeyboardInterrupt:
+        stop.set()
+        raise
+    log_path = Path(options.out) / LOG_FILE
+    log = json.loads(log_path.read_text()) if log_path.exists() else []
+    log.append({'argv': sys.argv[1:], 'trials_run': len(records), 'parallel': options.parallel,
+                'wall_time_s': round(time.monotonic() - started, 1), 'cpus': os.cpu_count()})
+    write_json(log_path, log)
+
+
+def load(options) -> dict:
+    by_setting = {}
+    for name in options.settings:
+        condition = SETTINGS[name].condition
+        records = load_records(Path(options.out) / name, [condition])[condition]
+        by_setting[name] = [r for r in records if r['seed'] in options.seeds
+                            and r['outcome'] in ('completed', 'completed_unclean')]
+    return by_setting
+
+
+def main(argv: Optional[Sequence[str]] = None) -> int:
+    options = argument_parser().parse_args(argv)
+    if not options.report_only:
+        run(options)
+    by_setting = load(options)
+    result = analysis.analyse(by_setting, options.steps)
+    write_json(Path(options.out) / 'analysis.json', result)
+    report.write(Path(options.report), Path(options.out), result, by_setting, options)
+    _say(f'wrote {options.report}')
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

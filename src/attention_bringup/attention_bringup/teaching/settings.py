@@ -1,0 +1,47 @@
+"""
+The four settings of the teaching evaluation.
+
+Every-step or human-like teacher, with or without language: each is a study condition plus the
+``attention_train`` options that set the trainer.
+"""
+
+from typing import Dict, NamedTuple, Tuple
+
+
+class Setting(NamedTuple):
+    """One arm of the evaluation."""
+
+    condition: str
+    """The study condition (``config/conditions/<name>.yaml``)."""
+    launcher_args: Tuple[str, ...]
+    text: str
+
+
+SETTINGS: Dict[str, Setting] = {
+    'every_step_vanilla': Setting(
+        'vanilla', ('--trainer', 'teacher'),
+        'Teacher on every step, no delay, no noise (stamped: step credit); Deep TAMER alone.'),
+    'every_step_language': Setting(
+        'language', ('--trainer', 'teacher'),
+        'The same teacher; it also speaks its stage sentence every 10 s (language saliency, '
+        'alpha 1e-4).'),
+    'human_like_vanilla': Setting(
+        'vanilla', ('--trainer', 'teacher', '--human-like'),
+        'Teacher on a third of the steps, 0.3-1.5 s late, 10 % of signs wrong, plain feedback '
+        'credited by the window; Deep TAMER alone.'),
+    'human_like_language': Setting(
+        'language', ('--trainer', 'teacher', '--human-like'),
+        'The same human-like teacher, speaking every 10 s (language saliency, alpha 1e-4).'),
+}
+"""The arms, in report order."""
+
+COMPARISONS = (('every_step_language', 'every_step_vanilla'),
+               ('human_like_language', 'human_like_vanilla'))
+"""(language, its vanilla baseline) pairs tested against each other."""
+
+SEEDS = tuple(range(1000, 1010))
+"""Seeds of the reported trials: none of them was used to tune anything (the learner and the
+teacher were tuned in one process on seeds 100-105: ``tests/benchmarks/teach_inprocess.py``)."""
+
+TARGETS = {'every_step_vanilla': (9, 3000), 'human_like_vanilla': (7, None)}
+"""Issue targets: (keys in at least this many of 10 trials, median steps to the key at most)."""

@@ -1,0 +1,139 @@
+"""
+Teaching in one process: the real game, the teacher and TamerAgent, without ROS.
+
+The loop is the graph's, one step after the other: the env steps, the teacher sees the step (the
+action applied, the state) and judges the previous one, the agent acts on the observation.
+Feedback the teacher gives without delay goes in stamped (``credit`` step); delayed feedback
+goes in plain, stamped by the agent on arrival (``credit`` window), as over topics. The learner
+runs on its own thread, as in tamer_node; ``--pace`` caps steps per second so that it gets the
+updates per step it gets in the graph (about 100 steps/s there).
+
+Used to find what stops Deep TAMER from learning the route (``docs/teaching.md``, the
+ablation); the targets themselves are measured through the graph (``attention_teaching``).
+
+Run: ``.venv/bin/python tests/benchmarks/teach_inprocess.py --seeds 100 101 --steps 10000
+[--human-like] [--set learning_rate=1e-3 ...] [--out results.json]``.
+"""
+
+import argparse
+import json
+from pathlib import Path
+import sys
+import tempfile
+import time
+
+
+def parse_value(text: str):
+    for kind in (int, float):
+        try:
+            return kind(text)
+        except ValueError:
+            pass
+    return {'true': True, 'false': False}.get(text, text)
+
+
+def run_trial(seed: int, steps: int, human_like: bool, overrides: dict, pace: float,
+              workdir: Path) -> dict:
+    from env_node.core import EnvConfig, MontezumaEnv
+    from feedback_node.human_like import HUMAN_LIKE_SETTING
+    from feedback_node.teacher import SeenStep, Teacher, TeacherConfig
+    from tamer_node.agent import share_the_cpu, TamerAgent
+    from tamer_node.config import TamerConfig
+
+    share_the_cpu()
+    knobs = vars(HUMAN_LIKE_SETTING) if human_like else {}
+    teacher = Teacher(TeacherConfig(utterance_interval=-1.0, seed=seed, **knobs))
+    config = {'seed': seed, 'alpha': 0.0, 'credit': 'window' if human_like else 'step'}
+    config.update(overrides)
+    run_dir = workdir / f'seed{seed}'
+    agent = TamerAgent(TamerConfig(run_dir=str(run_dir), **config), run_dir)
+    agent.start()
+    env = MontezumaEnv(EnvConfig(seed=seed))
+    stamped = not teacher.config.delayed
+
+    def see(step):
+        s = step.state
+        out = teacher.on_step(SeenStep(step.sim_time_ns, s.x, s.y, s.has_key, s.pose,
+                                       s.skull_x, step.action, step.episode))
+        return out.feedback
+
+    first_key, keys, lives_lost, had_key = None, 0, 0, False
+    curve = []
+    window = [0, 0]
+    step = env.warm_up()
+    see(step)
+    started = time.monotonic()
+    for t in range(1, steps + 1):
+        action = agent.on_observation(step.sim_time_ns, step.observation)
+        step = env.step(action)
+        feedback = see(step)
+        for judgement in feedback:
+            if stamped:
+                agent.on_feedback(judgement.h, 'stamped', judgement.stamp_ns)
+            else:
+                agent.on_feedback(judgement.h, 'plain')
+        if step.state.has_key and not had_key:
+            keys += 1
+            first_key = first_key or t
+        had_key = step.state.has_key
+        lives_lost += int(step.life_lost)
+        if step.done:
+            step = env.reset()
+            had_key = False
+            see(step)
+        counts = teacher.counts
+        if t % 500 == 0:
+            judged, agreed = counts['judged'] - window[0], counts['agreed'] - window[1]
+            window = [counts['judged'], counts['agreed']]
+            curve.append({'step': t, 'agreement': agreed / max(judged, 1), 'keys': keys,
+                          'x': step.state.x, 'y': step.state.y,
+                          'phase': teacher.expert.phase.name})
+        if pace > 0:
+            delay = started + t / pace - time.monotonic()
+            if delay > 0:
+                time.sleep(delay)
+    metrics = agent.metrics()
+    agent.close()
+    env.close()
+    return {'seed': seed, 'first_key_step': first_key, 'keys': keys, 'lives_lost': lives_lost,
+            'agreement': teacher.counts['agreed'] / max(teacher.counts['judged'], 1),
+            'teacher': teacher.counts, 'updates': metrics['train/updates'],
+            'updates_per_step': metrics['train/updates_per_step'],
+            'skipped_updates': metrics['train/skipped_updates'],
+            'wall_s': time.monotonic() - started, 'curve': curve}
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split('\n')[1])
+    parser.add_argument('--seeds', type=int, nargs='+', default=[100])
+    parser.add_argument('--steps', type=int, default=10000)
+    parser.add_argument('--human-like', action='store_true')
+    parser.add_argument('--set', action='append', default=[], metavar='NAME=VALUE',
+                        help='a TamerConfig field (repeatable)')
+    parser.add_argument('--pace', type=float, default=100.0, help='steps/s cap (0: none)')
+    parser.add_argument('--out', type=Path, default=None)
+    args = parser.parse_args(argv)
+    overrides = {item.split('=', 1)[0]: parse_value(item.split('=', 1)[1])
+                 for item in args.set}
+    results = []
+    with tempfile.TemporaryDirectory() as workdir:
+        for seed in args.seeds:
+            result = run_trial(seed, args.steps, args.human_like, overrides, args.pace,
+                               Path(workdir))
+            results.append(result)
+            print(json.dumps({k: v for k, v in result.items() if k != 'curve'}), flush=True)
+            print('  agreement per 500 steps:',
+                  ' '.join(f'{c["agreement"]:.2f}' for c in result['curve']), flush=True)
+            print('  where:', ' '.join(f'({c["x"]},{c["y"]},{c["phase"][:8]})'
+                                       for c in result['curve']), flush=True)
+    keyed = [r for r in results if r['first_key_step']]
+    print(f'key in {len(keyed)} of {len(results)}; first keys '
+          f'{sorted(r["first_key_step"] for r in keyed)}; overrides {overrides}')
+    if args.out:
+        args.out.write_text(json.dumps({'overrides': overrides, 'human_like': args.human_like,
+                                        'results': results}, indent=1))
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
