@@ -9,7 +9,8 @@ from attention_bringup.gallery import cdr_header_stamp_ns, GalleryCollector
 from attention_bringup.params import (
     dump_params, load_params_file, merge_params, node_params, ParamsFileError, parse_params)
 from attention_bringup.plan import (
-    build_plan, DEFAULT_STEPS, LaunchOptions, OVERRIDES_FILE, parse_options, REALTIME_RATE_HZ)
+    build_plan, DEFAULT_STEPS, LaunchOptions, OVERRIDES_FILE, parse_options, REALTIME_RATE_HZ,
+    TEACHING_GREEDY_MARGIN)
 from attention_bringup.progress import (
     ALIVE_STEPS, format_bar, parse_value, percentile, ProgressTracker)
 from feedback_node.teacher import TRAINERS
@@ -173,12 +174,15 @@ def test_plan_without_options_changes_only_budget_run_dir_and_trainer(tmp_path):
     # env_status before the learners start, so it sees the first step without a wait of its own.
     assert plan.overrides == {'env_node': {'max_steps': DEFAULT_STEPS},
                               'feedback_node': {'trainer': 'teacher'},
-                              'tamer_node': {'run_dir': str(plan.run_dir)}}
+                              'tamer_node': {'run_dir': str(plan.run_dir),
+                                             'greedy_margin': TEACHING_GREEDY_MARGIN}}
 
 
 def test_the_thesis_trainer_is_one_option_away_and_human_like_is_named(tmp_path):
     thesis = _plan(tmp_path, trainer='thesis')
     assert thesis.effective['feedback_node']['trainer'] == 'thesis'
+    assert 'greedy_margin' not in thesis.overrides.get('tamer_node', {})
+    assert 'greedy_margin' not in _plan(tmp_path, thesis_learner=True).overrides['tamer_node']
     assert thesis.effective['feedback_node']['feedback_probability'] == 1.0
     human = _plan(tmp_path, human_like=True)
     feedback = human.effective['feedback_node']
@@ -186,6 +190,8 @@ def test_the_thesis_trainer_is_one_option_away_and_human_like_is_named(tmp_path)
     assert (feedback['feedback_probability'], feedback['feedback_delay_min'],
             feedback['feedback_delay_max'], feedback['feedback_noise']) == (0.33, 0.3, 1.5, 0.1)
     assert human.effective['tamer_node']['credit'] == 'window'
+    assert (human.effective['tamer_node']['window_min_s'],
+            human.effective['tamer_node']['window_max_s']) == (0.2, 1.6)
     options = parse_options(['--trainer', 'thesis', '--human-like'])
     assert (options.trainer, options.human_like) == ('thesis', True)
     with pytest.raises(SystemExit):
@@ -225,6 +231,7 @@ def test_launch_file_names_the_same_executables_and_files():
     assert constants['GRAPH_FILE'] == graph.GRAPH_FILE
     assert constants['CONDITIONS_DIR'] == graph.CONDITIONS_DIR
     assert constants['TRAINERS'] == TRAINERS
+    assert constants['TEACHING_GREEDY_MARGIN'] == TEACHING_GREEDY_MARGIN
     functions = {node.name for node in tree.body if isinstance(node, ast.FunctionDef)}
     assert 'generate_launch_description' in functions
     defaults = {call.args[0].value: kw.value.value for call in ast.walk(tree)

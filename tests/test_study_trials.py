@@ -151,6 +151,21 @@ def test_plan_skips_existing_results_and_interleaves_conditions(tmp_path):
     assert pending[0].run_dir == tmp_path / 'runs' / 'language' / 'seed0'
 
 
+def test_the_study_keeps_the_thesis_trainer_unless_told_and_passes_the_trainer_on(tmp_path):
+    from attention_bringup.study.cli import argument_parser, launcher_args, regenerate_command
+    default = argument_parser().parse_args([])
+    assert launcher_args(default) == ['--trainer', 'thesis']
+    told = argument_parser().parse_args(['--trainer', 'teacher', '--human-like'])
+    told.runs_dir = 'runs/study'
+    assert launcher_args(told) == ['--trainer', 'teacher', '--human-like']
+    assert regenerate_command(told, 2).endswith('--trainer teacher --human-like')
+    pending, _ = runner.plan_trials(['vanilla'], 1, 500, tmp_path / 'out', tmp_path / 'runs',
+                                    launcher_args=launcher_args(told), seeds=[7])
+    command = runner.launcher_command(Path('attention_train'), pending[0])
+    assert command[-3:] == ['--trainer', 'teacher', '--human-like']
+    assert command[command.index('--seed') + 1] == '7'
+
+
 def test_retry_crashed_moves_the_old_record_aside(tmp_path):
     out = tmp_path / 'out'
     path = trials.trial_path(out, 'language', 0)

@@ -33,8 +33,9 @@ def parse_value(text: str):
 
 
 def run_trial(seed: int, steps: int, human_like: bool, overrides: dict, pace: float,
-              workdir: Path) -> dict:
+              workdir: Path, table: str = '') -> dict:
     from env_node.core import EnvConfig, MontezumaEnv
+    from feedback_node.action_effects import EffectTable, STRICT
     from feedback_node.human_like import HUMAN_LIKE_SETTING
     from feedback_node.teacher import SeenStep, Teacher, TeacherConfig
     from tamer_node.agent import share_the_cpu, TamerAgent
@@ -42,8 +43,15 @@ def run_trial(seed: int, steps: int, human_like: bool, overrides: dict, pace: fl
 
     share_the_cpu()
     knobs = vars(HUMAN_LIKE_SETTING) if human_like else {}
-    teacher = Teacher(TeacherConfig(utterance_interval=-1.0, seed=seed, **knobs))
+    if table == 'strict':  # +1 only for the expert's very action, never silent
+        effects = EffectTable({'': STRICT}, {}, ())
+    else:
+        effects = EffectTable.load(Path(table)) if table else None
+    teacher = Teacher(TeacherConfig(utterance_interval=-1.0, seed=seed, **knobs), effects)
+    from attention_bringup.plan import HUMAN_LIKE_WINDOW_S
     config = {'seed': seed, 'alpha': 0.0, 'credit': 'window' if human_like else 'step'}
+    if human_like:  # as attention_train --human-like sets it
+        config['window_min_s'], config['window_max_s'] = HUMAN_LIKE_WINDOW_S
     config.update(overrides)
     run_dir = workdir / f'seed{seed}'
     agent = TamerAgent(TamerConfig(run_dir=str(run_dir), **config), run_dir)
@@ -111,15 +119,25 @@ def main(argv=None) -> int:
     parser.add_argument('--set', action='append', default=[], metavar='NAME=VALUE',
                         help='a TamerConfig field (repeatable)')
     parser.add_argument('--pace', type=float, default=100.0, help='steps/s cap (0: none)')
+    parser.add_argument('--table', default='',
+                        help="the teacher's action table: a JSON file from teacher_effects, "
+                             "'strict' (every action its own class: +1 only for the expert's "
+                             'very action), default the shipped one')
+    parser.add_argument('--skull-gone-steps', type=int, default=None,
+                        help="the expert's rule for a vanished skull (a huge value: no rule)")
+    parser.add_argument('--what', default='', help='a line describing the variant (--out)')
     parser.add_argument('--out', type=Path, default=None)
     args = parser.parse_args(argv)
     overrides = {item.split('=', 1)[0]: parse_value(item.split('=', 1)[1])
                  for item in args.set}
+    if args.skull_gone_steps is not None:
+        from feedback_node import expert
+        expert.SKULL_GONE_STEPS = args.skull_gone_steps
     results = []
     with tempfile.TemporaryDirectory() as workdir:
         for seed in args.seeds:
             result = run_trial(seed, args.steps, args.human_like, overrides, args.pace,
-                               Path(workdir))
+                               Path(workdir), args.table)
             results.append(result)
             print(json.dumps({k: v for k, v in result.items() if k != 'curve'}), flush=True)
             print('  agreement per 500 steps:',
@@ -130,8 +148,10 @@ def main(argv=None) -> int:
     print(f'key in {len(keyed)} of {len(results)}; first keys '
           f'{sorted(r["first_key_step"] for r in keyed)}; overrides {overrides}')
     if args.out:
-        args.out.write_text(json.dumps({'overrides': overrides, 'human_like': args.human_like,
-                                        'results': results}, indent=1))
+        args.out.write_text(json.dumps({
+            'what': args.what, 'argv': sys.argv[1:], 'overrides': overrides,
+            'human_like': args.human_like, 'table': args.table or 'shipped',
+            'results': results}, indent=1))
     return 0
 
 

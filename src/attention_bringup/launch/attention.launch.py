@@ -25,6 +25,7 @@ CONDITIONS = (
 GRAPH_FILE = 'graph.yaml'
 CONDITIONS_DIR = 'conditions'
 TRAINERS = ('teacher', 'thesis')
+TEACHING_GREEDY_MARGIN = 0.1  # tamer_node greedy_margin with the teacher, as attention_train
 
 
 def _nodes(context):
@@ -43,7 +44,9 @@ def _nodes(context):
     overrides = {
         'env_node': {'max_steps': int(LaunchConfiguration('max_steps').perform(context))},
         'feedback_node': {'trainer': trainer},
-        'tamer_node': {'run_dir': LaunchConfiguration('run_dir').perform(context)},
+        'tamer_node': {'run_dir': LaunchConfiguration('run_dir').perform(context),
+                       **({'greedy_margin': TEACHING_GREEDY_MARGIN} if trainer == 'teacher'
+                          else {})},
     }
     return [Node(package=name, executable=name, name=name, output='screen',
                  parameters=files + [overrides.get(name, {})])

@@ -128,6 +128,11 @@ def main(argv=None) -> int:
     parser.add_argument('--out', type=Path, default=TABLE_PATH)
     parser.add_argument('--samples', type=Path, default=None,
                         help='JSON file of measured states: read if it exists, else written')
+    parser.add_argument('--agreement', type=float, default=AGREEMENT,
+                        help=f'share of states two actions must agree in (default {AGREEMENT})')
+    parser.add_argument('--noop-probe-only', action='store_true',
+                        help='judge equivalence by the NOOP probe alone (for comparison: it '
+                             'cannot tell holding the button from releasing it)')
     args = parser.parse_args(argv)
     if args.samples is not None and args.samples.exists():
         samples = [(Situation(*s), Measured(*(partition_of(p) for p in m)))
@@ -137,10 +142,12 @@ def main(argv=None) -> int:
         if args.samples is not None:
             args.samples.write_text(json.dumps(
                 [(list(s), [[sorted(c) for c in p] for p in m]) for s, m in samples]))
-    table = build_table(samples, info={
+    if args.noop_probe_only:
+        samples = [(s, Measured(m.effect, m.effect)) for s, m in samples]
+    table = build_table(samples, agreement=args.agreement, info={
         'seeds': args.seeds, 'states_per_seed': args.steps, 'follow_steps': FOLLOW_STEPS,
-        'exploration': list(EXPLORATION), 'agreement': AGREEMENT, 'moot_share': MOOT_SHARE,
-        'min_states': MIN_STATES,
+        'exploration': list(EXPLORATION), 'agreement': args.agreement, 'moot_share': MOOT_SHARE,
+        'min_states': MIN_STATES, 'noop_probe_only': args.noop_probe_only,
         'command': 'teacher_effects'})
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps(table.to_json(), indent=1) + '\n')

@@ -82,7 +82,7 @@ class TamerAgent:
         model = HModel(config.head_hidden, freeze_encoder=not config.fine_tune_encoder,
                        encoder=encoder)
         self.learner = Learner(model, config.learning_rate, config.alpha, config.max_grad_norm)
-        self.actor = ActingModel(model)
+        self.actor = ActingModel(model, config.greedy_margin, config.seed)
         self.slot = SnapshotSlot()
         # A frozen encoder: the buffer holds each image's features (computed once, by the
         # actor for the image it acts on), so an update runs the small head only.

@@ -59,6 +59,10 @@ class TamerConfig:
     """Image the agent acts and learns on: 'observation' or the step's 'saliency' image."""
     head_hidden: int = 64
     """Hidden units of H's fully connected head."""
+    greedy_margin: float = 0.0
+    """0: the thesis's greedy policy (argmax, ties to the lowest action). Above 0: H clipped
+    to [-1, 1], actions within this margin of the best are tied, ties broken at random
+    (attention_train sets 0.1 with the teacher; see worker.ActingModel)."""
     seed: int = 0
     """Seeds the head's initial weights and minibatch sampling."""
     encoder_path: str = ''
@@ -96,6 +100,7 @@ class TamerConfig:
             'checkpoint_period_s': self.checkpoint_period_s >= 0.0,
             'metrics_period_s': self.metrics_period_s > 0.0,
             'head_hidden': self.head_hidden >= 1,
+            'greedy_margin': 0.0 <= self.greedy_margin <= 2.0,
         }
         for name, ok in checks.items():
             if not ok:

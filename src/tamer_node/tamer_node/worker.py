@@ -114,13 +114,29 @@ class SnapshotSlot:
             return self._version, self._state
 
 
-class ActingModel:
-    """The actor's own copy of H: eval mode forever, refreshed from snapshots."""
+H_RANGE = 1.0
+"""The trainers' feedback lies in [-1, 1]; H beyond it is extrapolation, not a judgement."""
 
-    def __init__(self, model: HModel):
+
+class ActingModel:
+    """
+    The actor's own copy of H: eval mode forever, refreshed from snapshots.
+
+    ``greedy_margin`` 0 is the thesis's policy: argmax_a H(s, a), ties to the lowest index.
+    Above 0, H is first clipped to the feedback range [-1, 1] and every action within the
+    margin of the best counts as tied; a tie is broken at random (seeded). Without it an
+    action the trainer never judged in a state, but punished in many others (UP, wrong almost
+    everywhere on the floor), is extrapolated below -1 there and never tried, while every
+    action tried sits at -1: an agent stood 3,000 steps at the foot of the left ladder trying
+    every action but UP (graph trial, seed 1006).
+    """
+
+    def __init__(self, model: HModel, greedy_margin: float = 0.0, seed: int = 0):
         self.model = copy.deepcopy(model).eval()
         self.model.requires_grad_(False)
         self.version = 0
+        self.greedy_margin = float(greedy_margin)
+        self._rng = np.random.default_rng(seed)
 
     def refresh(self, slot: SnapshotSlot) -> None:
         newer = slot.newer_than(self.version)
@@ -132,9 +148,17 @@ class ActingModel:
         with torch.inference_mode():
             return self.model(to_input(image))[0]
 
+    def choose(self, h: torch.Tensor) -> int:
+        """The greedy action of one state's (18,) H values (see the class docstring)."""
+        if self.greedy_margin <= 0.0:
+            return int(torch.argmax(h))
+        clipped = h.clamp(-H_RANGE, H_RANGE)
+        tied = torch.nonzero(clipped >= clipped.max() - self.greedy_margin).flatten()
+        return int(tied[self._rng.integers(len(tied))])
+
     def greedy(self, image: torch.Tensor) -> int:
-        """argmax_a H(s, a): the thesis's greedy policy (ties: the lowest action index)."""
-        return int(torch.argmax(self.predict(image)))
+        """argmax_a H(s, a): the greedy policy (``choose``)."""
+        return self.choose(self.predict(image))
 
     def features(self, image: torch.Tensor) -> torch.Tensor:
         """Return the (1120,) encoder features of a (105, 80) uint8 image (no_grad)."""
@@ -144,7 +168,7 @@ class ActingModel:
     def greedy_on_features(self, features: torch.Tensor) -> int:
         """``greedy`` from the image's features (``features``): the same action."""
         with torch.no_grad():
-            return int(torch.argmax(self.model.from_features(features.unsqueeze(0))[0]))
+            return self.choose(self.model.from_features(features.unsqueeze(0))[0])
 
 
 class LearnerWorker(threading.Thread):

@@ -88,14 +88,18 @@ def comparison_table(result: Mapping) -> List[str]:
 
 
 def ablation_rows(out_dir: Path) -> List[List[str]]:
+    """One row per ``<out>/ablation/*.json`` (``teach_inprocess.py --out``), and its command."""
     rows = []
     for path in sorted((out_dir / 'ablation').glob('*.json')):
         data = json.loads(path.read_text())
         results = data['results']
         keyed = sorted(r['first_key_step'] for r in results if r['first_key_step'])
+        lives = sum(r['lives_lost'] for r in results) / len(results)
+        command = 'teach_inprocess.py ' + ' '.join(data.get('argv', []))
         rows.append([f'`{path.stem}`', data.get('what', ''), str(len(results)),
                      f'{len(keyed)}', ', '.join(map(str, keyed)) or '-',
-                     _num(sum(r['agreement'] for r in results) / len(results), 2)])
+                     _num(sum(r['agreement'] for r in results) / len(results), 2),
+                     _num(lives), f'`{command}`'])
     return rows
 
 
@@ -157,7 +161,7 @@ def write(path: Path, out_dir: Path, result: Mapping, by_setting: Mapping, optio
     if rows:
         text += ['## What each change bought (in one process, tuning seeds)', '']
         text += _table(['variant', 'what', 'trials', 'key', 'first key steps',
-                        'agreement'], rows)
+                        'agreement', 'lives lost', 'command'], rows)
         text += ['', 'Each row: `tests/benchmarks/teach_inprocess.py` with the real game, the '
                  'teacher and TamerAgent in one process, 10,000 steps per trial, seeds 100-105 '
                  '(tuning seeds). *Agreement*: the share of judged actions the teacher '

@@ -28,12 +28,24 @@ SETTINGS: Dict[str, Setting] = {
     'human_like_vanilla': Setting(
         'vanilla', ('--trainer', 'teacher', '--human-like'),
         'Teacher on a third of the steps, 0.3-1.5 s late, 10 % of signs wrong, plain feedback '
-        'credited by the window; Deep TAMER alone.'),
+        'credited by the window (0.2-1.6 s); Deep TAMER alone.'),
     'human_like_language': Setting(
         'language', ('--trainer', 'teacher', '--human-like'),
         'The same human-like teacher, speaking every 10 s (language saliency, alpha 1e-4).'),
 }
 """The arms, in report order."""
+
+THESIS_LEARNER = {
+    'every_step_vanilla_thesis_learner': Setting(
+        'vanilla', ('--trainer', 'teacher', '--thesis-learner'),
+        "As every_step_vanilla, with the thesis's greedy policy (argmax, ties to the lowest "
+        'action; no greedy_margin).'),
+    'every_step_language_thesis_learner': Setting(
+        'language', ('--trainer', 'teacher', '--thesis-learner'),
+        "As every_step_language, with the thesis's greedy policy."),
+}
+"""Arms that show what the learner's change bought (run, not tuned on, by ``--settings``)."""
+SETTINGS.update(THESIS_LEARNER)
 
 COMPARISONS = (('every_step_language', 'every_step_vanilla'),
                ('human_like_language', 'human_like_vanilla'))
