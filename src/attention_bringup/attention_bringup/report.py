@@ -62,7 +62,7 @@ def write_params(path: Path, node_params: Mapping[str, Mapping[str, object]],
 
 
 def feedback_text(summary: Mapping) -> str:
-    """The learner's own count of feedback when it has one (the launcher hears only part)."""
+    """Return the learner's own count of feedback if known (the launcher hears only part)."""
     received = summary.get('metrics', {}).get('feedback/received')
     if received is not None:
         return f'feedback received by the learner {int(received)}'
@@ -90,7 +90,8 @@ def summary_lines(summary: Mapping) -> List[str]:
         f'{summary.get("steps", 0)} steps in {format_duration(summary.get("wall_time_s", 0))} '
         f'({summary.get("steps_per_s", 0):.1f} steps/s), {summary.get("episodes", 0)} episodes, '
         f'{key_text}; {reached}',
-        f'{feedback_text(summary)}, utterances {summary.get("utterance_count", 0)}, saliency images '
+        f'{feedback_text(summary)}, utterances {summary.get("utterance_count", 0)}, '
+        'saliency images '
         f'{counts.get("saliency", 0)}; {updates_text}{loss_text}',
         f'{summary.get("status", "?")}: {summary.get("exit_text", "")}',
     ]

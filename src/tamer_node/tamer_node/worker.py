@@ -149,7 +149,7 @@ class ActingModel:
             return self.model(to_input(image))[0]
 
     def choose(self, h: torch.Tensor) -> int:
-        """The greedy action of one state's (18,) H values (see the class docstring)."""
+        """Return the greedy action for one state's (18,) H values (see the class docstring)."""
         if self.greedy_margin <= 0.0:
             return int(torch.argmax(h))
         clipped = h.clamp(-H_RANGE, H_RANGE)

@@ -31,6 +31,9 @@ def value(record: Mapping, measure: str) -> Optional[float]:
         return None if stood is None else float(stood)
     if measure == 'furthest_passed':
         return float(record['furthest_position'])
+    if measure == 'feedback':  # the learner's count; the launcher hears no plain feedback
+        count = record.get('feedback_received', record.get('feedback_count'))
+        return None if count is None else float(count)
     return float(record[measure]) if record.get(measure) is not None else None
 
 
@@ -59,7 +62,7 @@ def summarize(records: Sequence[Mapping]) -> dict:
         'median_steps_to_key_censored': median(values(records, 'steps_to_key')),
         'wall_time_s': sum(r.get('wall_time_s', 0.0) for r in records),
     }
-    for measure in ('furthest_stood', 'furthest_passed', 'lives_lost', 'feedback_count',
+    for measure in ('furthest_stood', 'furthest_passed', 'lives_lost', 'feedback',
                     'updates_per_step', 'training_steps_per_s'):
         estimate = stats.mean_ci(values(records, measure))
         summary[measure] = {'mean': estimate.mean, 'low': estimate.low, 'high': estimate.high}

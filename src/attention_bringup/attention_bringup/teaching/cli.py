@@ -19,7 +19,7 @@ from typing import List, Optional, Sequence
 
 from attention_bringup.plan import positive_int
 from attention_bringup.study import runner
-from attention_bringup.study.trials import load_records, write_json
+from attention_bringup.study.trials import load_records, refresh_records, write_json
 from attention_bringup.teaching import analysis, report
 from attention_bringup.teaching.settings import SEEDS, SETTINGS
 
@@ -43,6 +43,9 @@ def argument_parser() -> argparse.ArgumentParser:
     parser.add_argument('--runs-dir', default=DEFAULT_RUNS,
                         help='full run folders (large; not for committing)')
     parser.add_argument('--report-only', action='store_true', help='run no trials')
+    parser.add_argument('--refresh-records', action='store_true',
+                        help='rebuild the result files from their run folders (fields added '
+                             'later), then report; run it from the repository root')
     return parser
 
 
@@ -107,7 +110,12 @@ def load(options) -> dict:
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
     options = argument_parser().parse_args(argv)
-    if not options.report_only:
+    if options.refresh_records:
+        for name in options.settings:
+            done, skipped = refresh_records(Path(options.out) / name,
+                                            [SETTINGS[name].condition], Path.cwd())
+            _say(f'{name}: {len(done)} result file(s) refreshed, {len(skipped)} skipped')
+    elif not options.report_only:
         run(options)
     by_setting = load(options)
     result = analysis.analyse(by_setting, options.steps)

@@ -69,11 +69,11 @@ def settings_table(result: Mapping) -> List[str]:
             f'`{name}`', str(s['n']), f'{s["keys"]} ({low:.2f}-{high:.2f})',
             _num(s['median_steps_to_key'], 0), ', '.join(map(str, s['first_key_steps'])) or '-',
             _num(s['furthest_stood']['mean']), _num(s['furthest_passed']['mean']),
-            _num(s['lives_lost']['mean']), _num(s['feedback_count']['mean'], 0),
+            _num(s['lives_lost']['mean']), _num(s['feedback']['mean'], 0),
             _num(s['updates_per_step']['mean'], 2), _num(s['training_steps_per_s']['mean'], 0)])
     return _table(['setting', 'trials', 'key (Wilson 95 %)', 'median steps to key',
                    'first key steps', 'furthest stood', 'furthest passed', 'lives lost',
-                   'feedback given', 'updates / step', 'steps/s'], rows)
+                   'feedback', 'updates / step', 'steps/s'], rows)
 
 
 def comparison_table(result: Mapping) -> List[str]:
@@ -147,8 +147,8 @@ def write(path: Path, out_dir: Path, result: Mapping, by_setting: Mapping, optio
     text += ['', '*Furthest stood*: the furthest critical position the agent stood on (within '
              '8 px, on the ground, a ladder or the rope, alive 15 steps later). *Furthest '
              'passed*: within 8 px at any moment, in mid-air or dying too; this is the measure '
-             'the Room 1 study (`docs/results.md`) used. *Feedback given*: what the teacher '
-             'published. *Updates / step*: learner updates (immediate and minibatch) per agent '
+             'the Room 1 study (`docs/results.md`) used. *Feedback*: what the learner '
+             'received (`feedback/received` of its metrics). *Updates / step*: learner updates (immediate and minibatch) per agent '
              'step.', '']
     if drawn:
         text += [f'![the key by step]({figure})', '']
