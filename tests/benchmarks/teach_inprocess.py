@@ -8,6 +8,10 @@ goes in plain, stamped by the agent on arrival (``credit`` window), as over topi
 runs on its own thread, as in tamer_node; ``--pace`` caps steps per second so that it gets the
 updates per step it gets in the graph (about 100 steps/s there).
 
+For late (plain) feedback it also measures the credit window's *label purity*: the share of
+each feedback's credit that lands on steps where the agent did what the teacher judged, and the
+share on the judged step itself.
+
 Used to find what stops Deep TAMER from learning the route (``docs/teaching.md``, the
 ablation); the targets themselves are measured through the graph (``attention_teaching``).
 
@@ -65,6 +69,19 @@ def run_trial(seed: int, steps: int, human_like: bool, overrides: dict, pace: fl
                                        s.skull_x, step.action, step.episode))
         return out.feedback
 
+    from tamer_node.credit import spans_from_stamps, window_credit
+    acted = {}       # stamp -> the agent's action
+    purity = []      # per late feedback: (credit on steps with the judged action, on the step)
+    credit_window = (agent.config.window_min_s, agent.config.window_max_s)
+
+    def credit_check(judgement, now_ns) -> None:
+        recent = sorted(acted)[-120:]
+        credit = window_credit(spans_from_stamps(recent, now_ns), now_ns, *credit_window)
+        total = sum(credit.values())
+        if total > 0:
+            same = sum(w for s, w in credit.items() if acted[s] == judgement.action)
+            purity.append((same / total, credit.get(judgement.stamp_ns, 0.0) / total))
+
     first_key, keys, lives_lost, had_key = None, 0, 0, False
     curve = []
     window = [0, 0]
@@ -73,6 +90,8 @@ def run_trial(seed: int, steps: int, human_like: bool, overrides: dict, pace: fl
     started = time.monotonic()
     for t in range(1, steps + 1):
         action = agent.on_observation(step.sim_time_ns, step.observation)
+        acted[step.sim_time_ns] = action
+        newest = step.sim_time_ns  # what the agent stamps plain feedback with (its newest)
         step = env.step(action)
         feedback = see(step)
         for judgement in feedback:
@@ -80,6 +99,7 @@ def run_trial(seed: int, steps: int, human_like: bool, overrides: dict, pace: fl
                 agent.on_feedback(judgement.h, 'stamped', judgement.stamp_ns)
             else:
                 agent.on_feedback(judgement.h, 'plain')
+                credit_check(judgement, newest)
         if step.state.has_key and not had_key:
             keys += 1
             first_key = first_key or t
@@ -103,12 +123,15 @@ def run_trial(seed: int, steps: int, human_like: bool, overrides: dict, pace: fl
     metrics = agent.metrics()
     agent.close()
     env.close()
+    n = max(len(purity), 1)
     return {'seed': seed, 'first_key_step': first_key, 'keys': keys, 'lives_lost': lives_lost,
             'agreement': teacher.counts['agreed'] / max(teacher.counts['judged'], 1),
             'teacher': teacher.counts, 'updates': metrics['train/updates'],
             'updates_per_step': metrics['train/updates_per_step'],
             'skipped_updates': metrics['train/skipped_updates'],
-            'wall_s': time.monotonic() - started, 'curve': curve}
+            'wall_s': time.monotonic() - started, 'curve': curve,
+            'label_purity': sum(p for p, _ in purity) / n if purity else None,
+            'credit_on_judged_step': sum(q for _, q in purity) / n if purity else None}
 
 
 def main(argv=None) -> int:
