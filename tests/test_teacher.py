@@ -67,6 +67,16 @@ def test_silent_while_dying_in_the_air_after_the_key_and_across_a_reset():
     assert teacher.counts['unjudged_resets'] == 1
 
 
+def test_a_missed_step_is_not_judged_with_the_wrong_action():
+    teacher = Teacher(TeacherConfig(utterance_interval=-1.0))
+    teacher.on_step(seen(0, 77, 235, action=-1)._replace(agent_step=0))
+    # Step 1's status never arrived: step 2 carries the action taken at 1, not at 0.
+    out = teacher.on_step(seen(2, 77, 227, action=A['LEFT'], pose=10)._replace(agent_step=2))
+    assert out.feedback == [] and teacher.counts['unjudged_gaps'] == 1
+    out = teacher.on_step(seen(3, 77, 223, action=A['DOWN'], pose=10)._replace(agent_step=3))
+    assert [(f.stamp_ns, f.h) for f in out.feedback] == [(2 * NS, 1.0)]
+
+
 def test_stamps_that_go_back_start_the_teacher_over_and_re_sends_are_not_judged_twice():
     teacher = Teacher(TeacherConfig(utterance_interval=-1.0))
     teacher.on_step(seen(5, 77, 235, action=-1))

@@ -67,7 +67,7 @@ class Player:
                            if stamp_to_ns(m.header.stamp) > last)
             v = self._status(stamp_ns)
             seen = SeenStep(stamp_ns, v['x'], v['y'], v['has_key'], v['pose'], v['skull_x'],
-                            v['action'], v['episode'])
+                            v['action'], v['episode'], v['agent_step'])
             previous = v['action'] if v['action'] >= 0 else None
             expert_action = self.expert.act(seen, seen.skull_x, previous_action=previous)
             action, wrong = expert_action, False

@@ -66,7 +66,7 @@ def run_trial(seed: int, steps: int, human_like: bool, overrides: dict, pace: fl
     def see(step):
         s = step.state
         out = teacher.on_step(SeenStep(step.sim_time_ns, s.x, s.y, s.has_key, s.pose,
-                                       s.skull_x, step.action, step.episode))
+                                       s.skull_x, step.action, step.episode, step.agent_step))
         return out.feedback
 
     from tamer_node.credit import spans_from_stamps, window_credit

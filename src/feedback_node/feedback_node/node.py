@@ -183,7 +183,7 @@ class FeedbackNode(Node):
             seen = SeenStep(stamp_ns=stamp_to_ns(msg.header.stamp), x=values['x'],
                             y=values['y'], has_key=values['has_key'], pose=values['pose'],
                             skull_x=values['skull_x'], action=values['action'],
-                            episode=values['episode'])
+                            episode=values['episode'], agent_step=values['agent_step'])
         except (StopIteration, KeyError, ValueError) as error:
             self._counts['bad_status'] += 1
             self.get_logger().error(f'env_status dropped: not an {STATUS_NAME} status with the '

@@ -70,6 +70,8 @@ class SeenStep(NamedTuple):
     action: int
     """The action the env applied to reach this step; -1 after a reset."""
     episode: int
+    agent_step: int = -1
+    """``env_status`` ``agent_step`` (-1: unknown); a step missed in between is not judged."""
 
 
 class Judgement(NamedTuple):
@@ -95,6 +97,7 @@ class _Decided(NamedTuple):
 
     stamp_ns: int
     episode: int
+    agent_step: int
     phase: Phase
     situation: Situation
     expert_action: int
@@ -111,7 +114,8 @@ class Teacher:
         self.scheduler = FeedbackScheduler(self.config, self.config.seed)
         self.schedule = IntervalSchedule(self.config.utterance_interval)
         self._counts = {'steps': 0, 'judged': 0, 'agreed': 0, 'cannot_matter': 0,
-                        'after_key': 0, 'unjudged_resets': 0, 'duplicates': 0, 'restarts': 0}
+                        'after_key': 0, 'unjudged_resets': 0, 'unjudged_gaps': 0,
+                        'duplicates': 0, 'restarts': 0}
         self.reset()
 
     @property
@@ -145,6 +149,10 @@ class Teacher:
         if last is not None:
             if new_episode:
                 self._counts['unjudged_resets'] += 1
+            elif min(seen.agent_step, last.agent_step) >= 0 and (
+                    seen.agent_step != last.agent_step + 1):
+                # A step's status was missed: the action seen is not the one taken at T.
+                self._counts['unjudged_gaps'] += 1
             else:
                 self._judge(last, seen)
         if new_episode:
@@ -154,7 +162,8 @@ class Teacher:
         phase = self.expert.phase
         situation = Situation(phase.name, place_of(seen.x, seen.y), seen.pose,
                               seen.action in FIRE_ACTIONS)
-        self._last = _Decided(seen.stamp_ns, seen.episode, phase, situation, expert_action)
+        self._last = _Decided(seen.stamp_ns, seen.episode, seen.agent_step, phase, situation,
+                              expert_action)
         return TeacherOutput(self.scheduler.release(seen.stamp_ns), self._speak(seen, phase))
 
     def _judge(self, last: _Decided, seen: SeenStep) -> None:
