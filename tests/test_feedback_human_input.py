@@ -3,7 +3,7 @@
 import math
 
 from feedback_node.human_input import (
-    excerpt, feedback_problem, MAX_UTTERANCE_CHARS, utterance_problem)
+    excerpt, feedback_problem, MAX_UTTERANCE_CHARS, position_problem, utterance_problem)
 import pytest
 
 
@@ -37,3 +37,16 @@ def test_excerpt_of_a_huge_utterance_is_short():
     quoted = excerpt('x' * 100_000)
     assert len(quoted) < 120 and '100000 characters' in quoted
     assert excerpt('ok') == "'ok'"
+
+
+@pytest.mark.parametrize('x, y, reason', [
+    (float('nan'), 235.0, 'not finite'), (40.0, float('inf'), 'not finite'),
+    (1e30, 235.0, 'outside'), (300.0, 235.0, 'outside'), (40.0, -5.0, 'outside'),
+    (-0.5, 148.0, 'outside')])
+def test_positions_the_game_cannot_report_are_refused(x, y, reason):
+    assert reason in position_problem(x, y)
+
+
+@pytest.mark.parametrize('x, y', [(0.0, 0.0), (77.0, 235.0), (255.0, 255.0), (21.0, 148.0)])
+def test_positions_in_the_ram_range_are_accepted(x, y):
+    assert position_problem(x, y) is None

@@ -250,6 +250,16 @@ def test_a_person_takes_over_and_bad_input_is_logged(probe, start_node):
     broken.point.x = math.nan
     positions.publish(broken)
     assert trainer.wait_for_log('agent_position dropped: x=nan', REPLY_S)
+    for step, (x, y) in enumerate(((1e30, 235.0), (300.0, 235.0), (40.0, -5.0)), start=11):
+        far = PointStamped()
+        far.header.stamp = ns_to_stamp(frames_to_ns(4 * step))
+        far.point.x, far.point.y, far.point.z = x, y, 1.0
+        positions.publish(far)
+    assert trainer.wait_for_log("x=300, y=235 is outside the game's range 0..255", REPLY_S)
+    assert trainer.wait_for_log('x=1e+30, y=235 is outside', REPLY_S)
+    assert trainer.wait_for_log('x=40, y=-5 is outside', REPLY_S)
+    publish_positions(positions, range(14, 18))  # good input after: judged again
+    assert listener.feedback_stamped.wait_count(12, REPLY_S), trainer.log_text()[-2000:]
     set_parameter(probe, 'synthetic', False)
     assert trainer.wait_for_log('a person trains', REPLY_S)
     before = (len(listener.feedback_stamped.snapshot()),

@@ -14,7 +14,6 @@ a clear error line and is counted. ``synthetic`` can be switched at run time
 (``ros2 param set /feedback_node synthetic false``).
 """
 
-import math
 
 from attention_common import qos, topics
 from attention_common.node_main import run_node, StartupError
@@ -22,7 +21,8 @@ from attention_common.parameters import declare_parameters
 from attention_common.stamps import NS_PER_S, ns_to_stamp, stamp_to_ns
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from env_node.status import parse_status, STATUS_NAME
-from feedback_node.human_input import excerpt, feedback_problem, utterance_problem
+from feedback_node.human_input import (
+    excerpt, feedback_problem, position_problem, utterance_problem)
 from feedback_node.teacher import SeenStep, Teacher, TeacherConfig, TRAINERS
 from feedback_node.trainer import SyntheticTrainer, TrainerConfig
 from feedback_node.utterances import Utterance
@@ -146,9 +146,10 @@ class FeedbackNode(Node):
     def _on_position(self, msg: PointStamped) -> None:
         stamp_ns = stamp_to_ns(msg.header.stamp)
         x, y = msg.point.x, msg.point.y
-        if not (math.isfinite(x) and math.isfinite(y)):
+        problem = position_problem(x, y)
+        if problem is not None:
             self._counts['bad_positions'] += 1
-            self.get_logger().error(f'agent_position dropped: x={x}, y={y} is not finite')
+            self.get_logger().error(f'agent_position dropped: {problem}')
             return
         self._now_ns = stamp_ns
         if not self._synthetic or self._kind != 'thesis':
@@ -184,6 +185,9 @@ class FeedbackNode(Node):
                             y=values['y'], has_key=values['has_key'], pose=values['pose'],
                             skull_x=values['skull_x'], action=values['action'],
                             episode=values['episode'], agent_step=values['agent_step'])
+            problem = position_problem(seen.x, seen.y)
+            if problem is not None:
+                raise ValueError(problem)
         except (StopIteration, KeyError, ValueError) as error:
             self._counts['bad_status'] += 1
             self.get_logger().error(f'env_status dropped: not an {STATUS_NAME} status with the '
