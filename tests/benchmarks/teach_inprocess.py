@@ -20,6 +20,7 @@ Run: ``.venv/bin/python tests/benchmarks/teach_inprocess.py --seeds 100 101 --st
 """
 
 import argparse
+import collections
 import json
 from pathlib import Path
 import sys
@@ -71,12 +72,12 @@ def run_trial(seed: int, steps: int, human_like: bool, overrides: dict, pace: fl
 
     from tamer_node.credit import spans_from_stamps, window_credit
     acted = {}       # stamp -> the agent's action
+    recent = collections.deque(maxlen=120)  # the newest stamps, enough for any credit window
     purity = []      # per late feedback: (credit on steps with the judged action, on the step)
     credit_window = (agent.config.window_min_s, agent.config.window_max_s)
 
     def credit_check(judgement, now_ns) -> None:
-        recent = sorted(acted)[-120:]
-        credit = window_credit(spans_from_stamps(recent, now_ns), now_ns, *credit_window)
+        credit = window_credit(spans_from_stamps(list(recent), now_ns), now_ns, *credit_window)
         total = sum(credit.values())
         if total > 0:
             same = sum(w for s, w in credit.items() if acted[s] == judgement.action)
@@ -91,6 +92,7 @@ def run_trial(seed: int, steps: int, human_like: bool, overrides: dict, pace: fl
     for t in range(1, steps + 1):
         action = agent.on_observation(step.sim_time_ns, step.observation)
         acted[step.sim_time_ns] = action
+        recent.append(step.sim_time_ns)
         newest = step.sim_time_ns  # what the agent stamps plain feedback with (its newest)
         step = env.step(action)
         feedback = see(step)

@@ -8,6 +8,8 @@ logs what it hears when a person trains (``synthetic:=false``), for the record.
 import math
 from typing import Optional
 
+from attention_common.feedback import FEEDBACK_RANGE
+
 MAX_UTTERANCE_CHARS = 500
 """Longer than any sentence a trainer says (Figure 5.1's longest is 57 characters)."""
 
@@ -53,6 +55,6 @@ def feedback_problem(value: float) -> Optional[str]:
     """Why ``value`` is not a usable feedback h, or None (h is expected in [-1, 1])."""
     if not math.isfinite(value):
         return f'feedback {value} is not a finite number'
-    if abs(value) > 1.0:
+    if abs(value) > FEEDBACK_RANGE:
         return f'feedback {value} is outside [-1, 1]'
     return None

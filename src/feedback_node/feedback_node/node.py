@@ -185,13 +185,13 @@ class FeedbackNode(Node):
                             y=values['y'], has_key=values['has_key'], pose=values['pose'],
                             skull_x=values['skull_x'], action=values['action'],
                             episode=values['episode'], agent_step=values['agent_step'])
-            problem = position_problem(seen.x, seen.y)
-            if problem is not None:
-                raise ValueError(problem)
         except (StopIteration, KeyError, ValueError) as error:
+            problem = f'not an {STATUS_NAME} status with the keys the teacher needs ({error!r})'
+        else:
+            problem = position_problem(seen.x, seen.y)
+        if problem is not None:
             self._counts['bad_status'] += 1
-            self.get_logger().error(f'env_status dropped: not an {STATUS_NAME} status with the '
-                                    f'keys the teacher needs ({error!r})')
+            self.get_logger().error(f'env_status dropped: {problem}')
             return
         self._now_ns = seen.stamp_ns
         if not self._synthetic:

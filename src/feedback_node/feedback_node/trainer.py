@@ -104,7 +104,7 @@ class SyntheticTrainer:
         """Take the agent's position at step ``stamp_ns``; return what to publish now."""
         if self._last_ns is not None and stamp_ns == self._last_ns:
             self._counts['duplicates'] += 1  # the same step again (a re-send): already judged
-            return TrainerOutput(feedback=self._release(stamp_ns), utterance=None)
+            return TrainerOutput(feedback=self.scheduler.release(stamp_ns), utterance=None)
         if self._last_ns is not None and stamp_ns < self._last_ns:
             self._counts['restarts'] += 1  # stamps went back: a new trial started
             self.reset()
@@ -115,20 +115,14 @@ class SyntheticTrainer:
                 self._counts['unjudged_jumps'] += 1
             else:
                 self._counts['judged'] += 1
-                self._consider(Feedback(stamp_ns=self._last_ns, h=float(judgement.h),
+                self.scheduler.consider(Feedback(stamp_ns=self._last_ns, h=float(judgement.h),
                                         position=judgement.position,
                                         distance=judgement.distance, seen_ns=stamp_ns))
         self._last_ns = stamp_ns
-        return TrainerOutput(feedback=self._release(stamp_ns),
+        return TrainerOutput(feedback=self.scheduler.release(stamp_ns),
                              utterance=self.utterances.observe(x, y, stamp_ns))
 
     @property
     def pending(self) -> int:
         """Delayed feedback not given yet."""
         return self.scheduler.pending
-
-    def _consider(self, feedback: Feedback) -> None:
-        self.scheduler.consider(feedback)
-
-    def _release(self, now_ns: int) -> List[Feedback]:
-        return self.scheduler.release(now_ns)

@@ -53,6 +53,7 @@ import threading
 import time
 from typing import Callable, Dict, List, Optional
 
+from attention_common.feedback import FEEDBACK_RANGE
 import numpy as np
 from tamer_node.buffer import collate, FeedbackBuffer, Sample
 from tamer_node.config import TamerConfig
@@ -114,10 +115,6 @@ class SnapshotSlot:
             return self._version, self._state
 
 
-H_RANGE = 1.0
-"""The trainers' feedback lies in [-1, 1]; H beyond it is extrapolation, not a judgement."""
-
-
 class ActingModel:
     """
     The actor's own copy of H: eval mode forever, refreshed from snapshots.
@@ -152,7 +149,7 @@ class ActingModel:
         """Return the greedy action for one state's (18,) H values (see the class docstring)."""
         if self.greedy_margin <= 0.0:
             return int(torch.argmax(h))
-        clipped = h.clamp(-H_RANGE, H_RANGE)
+        clipped = h.clamp(-FEEDBACK_RANGE, FEEDBACK_RANGE)  # beyond: extrapolation
         tied = torch.nonzero(clipped >= clipped.max() - self.greedy_margin).flatten()
         return int(tied[self._rng.integers(len(tied))])
 

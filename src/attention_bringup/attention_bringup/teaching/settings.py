@@ -36,14 +36,11 @@ SETTINGS: Dict[str, Setting] = {
 """The arms, in report order."""
 
 THESIS_LEARNER = {
-    'every_step_vanilla_thesis_learner': Setting(
-        'vanilla', ('--trainer', 'teacher', '--thesis-learner'),
-        "As every_step_vanilla, with the thesis's greedy policy (argmax, ties to the lowest "
-        'action; no greedy_margin).'),
-    'every_step_language_thesis_learner': Setting(
-        'language', ('--trainer', 'teacher', '--thesis-learner'),
-        "As every_step_language, with the thesis's greedy policy."),
-}
+    f'{name}_thesis_learner': Setting(
+        SETTINGS[name].condition, SETTINGS[name].launcher_args + ('--thesis-learner',),
+        f"As {name}, with the thesis's greedy policy (argmax, ties to the lowest action; no "
+        'greedy_margin).')
+    for name in ('every_step_vanilla', 'every_step_language')}
 """Arms that show what the learner's change bought (run, not tuned on, by ``--settings``)."""
 SETTINGS.update(THESIS_LEARNER)
 
