@@ -159,9 +159,14 @@ def test_the_trainers_plain_copy_is_not_used_twice(start_node, probe, frames):
     assert node.wait_for_log(f"utterance at now: '{text}'", 10.0)
     wire.stamped.publish(stamped_utterance(text, t1))  # ...then the original
     assert node.wait_for_log('stamped one: withdrawn', 10.0), node.log_text()[-2000:]
-    wire.say(text)  # a copy after the original: the stamped stream is active
-    assert node.wait_for_log("taken as the stamped stream's copy", 10.0)
+    wire.say(text)  # a copy after the original
+    assert node.wait_for_log('is the copy of the stamped one just heard', 10.0)
     assert wire.wait_stamp(wire.saliency, t1)
+    # A person's other words while the trainer's stream is active are heard, not muted.
+    wire.say('Jump over the skull')
+    assert node.wait_for_log("utterance at now: 'Jump over the skull'", 10.0), (
+        node.log_text()[-2000:])
+    assert node.log_text().count('used once') == 1
     assert node.stop() == 0
 
 

@@ -3,7 +3,7 @@
 import threading
 
 from attention_common.stamps import (frames_to_ns, NS_PER_S, ns_to_stamp, stamp_to_ns,
-                                     StampStore)
+                                     StampGuard, StampStore)
 from builtin_interfaces.msg import Time
 import pytest
 
@@ -98,3 +98,44 @@ def test_store_stays_bounded_under_concurrent_writers():
         thread.join(timeout=30)
     assert not any(thread.is_alive() for thread in threads)
     assert len(store) <= 50
+
+
+# StampGuard: implausible jumps and restarts of a stream's stamps.
+JUMP = 60 * NS_PER_S
+
+
+def test_stamps_near_the_newest_are_accepted_late_ones_too():
+    guard = StampGuard(JUMP)
+    assert [guard.check(s * NS_PER_S) for s in (7, 8, 9, 8, 69)] == ['ok'] * 5
+    assert guard.newest == 69 * NS_PER_S and guard.rejected == 0
+
+
+@pytest.mark.parametrize('stray', [2**31 * NS_PER_S, 0, 200 * NS_PER_S])
+def test_one_stray_stamp_far_ahead_or_behind_is_rejected_and_moves_nothing(stray):
+    guard = StampGuard(JUMP)
+    for s in (100, 101):
+        guard.check(s * NS_PER_S)
+    assert guard.check(stray) == 'implausible'
+    assert guard.newest == 101 * NS_PER_S
+    assert guard.check(102 * NS_PER_S) == 'ok'
+    assert not guard.plausible(stray) and guard.plausible(102 * NS_PER_S)
+    assert guard.rejected == 1 and guard.restarts == 0
+
+
+def test_a_stream_that_starts_over_is_followed_after_three_stamps():
+    guard = StampGuard(JUMP)
+    for s in range(500, 510):
+        guard.check(s * NS_PER_S)
+    # A new env: 6.7 s, re-sent once (lockstep, unanswered), then on.
+    verdicts = [guard.check(s) for s in (6_700_000_000, 6_700_000_000, 6_766_666_667)]
+    assert verdicts == ['implausible', 'implausible', 'restart']
+    assert guard.newest == 6_766_666_667 and guard.restarts == 1
+    assert guard.check(6_833_333_333) == 'ok'
+
+
+def test_stray_stamps_that_do_not_continue_each_other_never_restart():
+    guard = StampGuard(JUMP)
+    guard.check(500 * NS_PER_S)
+    for stray in (0, 2**31 * NS_PER_S, 5 * NS_PER_S, 10**6 * NS_PER_S, 1 * NS_PER_S):
+        assert guard.check(stray) == 'implausible'
+    assert guard.newest == 500 * NS_PER_S and guard.restarts == 0

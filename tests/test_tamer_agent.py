@@ -4,13 +4,14 @@ import json
 import threading
 import time
 
+from attention_common.utterance import MAX_UTTERANCE_CHARS
 from harness import wait_until
 import numpy as np
 import pytest
 from tamer_node.agent import BadInput, TamerAgent
 from tamer_node.config import TamerConfig
 from tamer_node.credit import NS_PER_S
-from tamer_node.model import Encoder, FEATURE_SIZE, INPUT_SHAPE
+from tamer_node.model import Encoder, FEATURE_SIZE, INPUT_SHAPE, preprocess, to_input
 from tamer_node.persistence import (
     CHECKPOINT_DIR, CHECKPOINT_FILE, FEEDBACK_LOG, FeedbackLog, KIND_ACTION, KIND_OBSERVATION,
     load_checkpoint, StepJournal)
@@ -403,22 +404,100 @@ def test_resume_replays_the_logged_feedback_newer_than_the_checkpoint(tmp_path):
         resumed.close()
 
 
+def _features(agent, frame):
+    return agent.learner.model.features(
+        to_input(torch.from_numpy(preprocess(frame))))[0].detach()
+
+
+@pytest.mark.parametrize('keep_checkpoint', [True, False], ids=['checkpoint', 'log_only'])
+def test_two_resumes_never_pair_feedback_with_another_sessions_frame(tmp_path, keep_checkpoint):
+    """Each start's env stamps begin again at the same values; every sample keeps its frame."""
+    run = tmp_path / 'run'
+    given = {}  # feedback seq -> the frame shown for the step it judged
+    for session, offset in ((1, 0), (2, 17)):  # the second env shows other frames
+        agent = make_agent(run, resume=session > 1, saliency_timeout_s=0.05)
+        assert agent.session == session
+        for i in range(20):
+            frame = FRAMES[(i + offset) % len(FRAMES)]
+            agent.on_observation(stamp(i), frame)
+            event = agent.on_feedback(1.0, 'stamped', stamp(i))
+            given[event.seq] = frame
+        assert processed(agent, 20 * session)
+        agent.close()
+    if not keep_checkpoint:  # as if killed before any checkpoint: all replayed from the log
+        (run / CHECKPOINT_DIR / CHECKPOINT_FILE).unlink()
+    resumed = make_agent(run, resume=True)
+    try:
+        assert resumed.session == 3
+        samples = resumed.buffer.samples()
+        assert sorted(s.seq for s in samples) == list(range(1, 41))
+        for sample in samples:
+            assert sample.session == (1 if sample.seq <= 20 else 2)
+            assert torch.allclose(sample.state, _features(resumed, given[sample.seq])), sample
+        # The new session starts with no steps: old actions are not replayed for its stamps.
+        assert len(resumed.history) == 0
+        assert [e['session'] for e in log_lines(run) if e['kind'] == 'feedback'] == (
+            [1] * 20 + [2] * 20)
+    finally:
+        resumed.close()
+
+
+def test_a_far_future_observation_is_dropped_and_does_not_move_now(agents):
+    agent = agents()
+    play(agent, 5)
+    with pytest.raises(BadInput, match='stamp'):
+        agent.on_observation(2**31 * NS_PER_S, FRAMES[0])
+    with pytest.raises(BadInput, match='stamp'):
+        agent.on_saliency(2**31 * NS_PER_S, FRAMES[0])
+    event = agent.on_feedback(1.0, 'plain')
+    assert event.stamp == stamp(4) and event.status == 'ok'
+    assert processed(agent, 1)
+    assert [s.stamp for s in agent.buffer.samples()] == [stamp(4)]
+    metrics = agent.metrics()
+    assert metrics['drop/observation_stamp'] == 1 and metrics['drop/saliency_stamp'] == 1
+    assert agent.on_observation(stamp(5), FRAMES[5]) is not None  # and it goes on acting
+
+
+def test_an_env_that_starts_over_begins_a_new_session(agents):
+    agent = agents()
+    late = 1000
+    play(agent, 5, first=late)
+    assert agent.session == 1
+    # A new env: its stamps begin near 0; the first two are taken for strays.
+    for i in range(2):
+        with pytest.raises(BadInput):
+            agent.on_observation(stamp(0), FRAMES[0])
+    assert agent.on_observation(stamp(0), FRAMES[0]) is not None
+    assert agent.session == 2 and agent.metrics()['session/restarts'] == 1
+    assert any('started over' in text for level, text in agent.messages if level == 'warn')
+    # Feedback on a step of the old env is kept, not learned from; on the new one, learned.
+    agent.on_feedback(1.0, 'stamped', stamp(late + 2))
+    agent.on_feedback(-1.0, 'stamped', stamp(0))
+    assert processed(agent, 2)
+    assert [(s.stamp, s.session, s.h) for s in agent.buffer.samples()] == [(stamp(0), 2, -1.0)]
+    assert agent.worker.stats()['feedback/other_session'] == 0  # the old step is just gone
+    assert agent.worker.stats()['feedback/unmatched'] == 1
+
+
 def test_periodic_checkpoints_are_atomic_and_prune_the_journal(tmp_path):
     run = tmp_path / 'run'
     agent = make_agent(run, checkpoint_period_s=0.2)
     try:
-        feed(agent, 10)
-        assert processed(agent, 10)
+        for round in range(1, 4):
+            feed(agent, 10, first=10 * (round - 1))
+            assert processed(agent, 10 * round)
 
-        def has_everything():
-            # Each load sees a whole file: the old checkpoint or the new one, never a mix.
-            checkpoint = load_checkpoint(run)
-            return checkpoint is not None and checkpoint['applied_seq'] == 10
+            def has_everything():
+                # Each load sees a whole file: the old checkpoint or the new one, never a mix.
+                checkpoint = load_checkpoint(run)
+                return checkpoint is not None and checkpoint['applied_seq'] == 10 * round
 
-        assert wait_until(has_everything, 20, interval=0.05)
-        assert wait_until(lambda: agent.worker.stats()['checkpoint/count'] >= 3, 20)
-        # A new segment per checkpoint, but no empty ones are kept.
-        assert wait_until(lambda: len(list((run / 'steps').glob('segment-*.bin'))) <= 2, 20)
+            assert wait_until(has_everything, 20, interval=0.05)
+        assert agent.worker.stats()['checkpoint/count'] >= 3
+        # A new segment per checkpoint, but no empty ones are kept (but the one being written).
+        segments = sorted((run / 'steps').glob('segment-*.bin'))
+        assert sum(path.stat().st_size == 0 for path in segments[:-1]) == 0
+        assert len(segments) <= 4
     finally:
         agent.close()
     assert not list((run / CHECKPOINT_DIR).glob('*.tmp'))
@@ -450,14 +529,19 @@ def test_a_cut_journal_and_log_are_read_up_to_the_cut(tmp_path):
 
 def test_utterances_are_logged(agents, tmp_path):
     agent = agents()
-    agent.on_utterance('Climb down the ladder.')
-    agent.on_utterance('   ')
-    agent.on_utterance('x' * 100_000)
+    assert agent.on_utterance('Climb down the ladder.') == 'ok'
+    assert agent.on_utterance('   ') == 'empty'
+    assert agent.on_utterance('x' * 1_000_000) == 'too_long'
     assert agent.disk.flush()
     entries = [e for e in log_lines(tmp_path / 'run') if e['kind'] == 'utterance']
-    assert entries[0]['text'] == 'Climb down the ladder.'
-    assert entries[2]['truncated'] is True and len(entries[2]['text']) == 10_000
-    assert agent.metrics()['utterance/empty'] == 1
+    assert entries[0]['text'] == 'Climb down the ladder.' and entries[0]['status'] == 'ok'
+    assert entries[1]['status'] == 'empty'
+    assert entries[2]['status'] == 'too_long' and entries[2]['chars'] == 1_000_000
+    assert len(entries[2]['text']) == MAX_UTTERANCE_CHARS
+    metrics = agent.metrics()
+    assert metrics['utterance/empty'] == 1 and metrics['utterance/too_long'] == 1
+    assert [level for level, text in agent.messages if 'utterance dropped' in text] == [
+        'warn', 'warn']
 
 
 def test_an_unreadable_checkpoint_stops_the_resume_with_advice(tmp_path):
@@ -487,9 +571,9 @@ def test_the_journal_keeps_only_segments_with_needed_steps(tmp_path):
         return sorted(int(p.stem.split('-')[1]) for p in tmp_path.glob('segment-*.bin'))
 
     assert segments() == [0, 1, 3]
-    assert journal.delete_older_than(20) == 1 and segments() == [1, 3]
-    assert [(r[1], int(r[3].sum())) for r in StepJournal.read(tmp_path)] == [
-        (20, 7 * image.numel()), (30, 7 * image.numel())]
-    journal.delete_older_than(10 ** 12)
+    assert journal.delete_older_than((1, 20)) == 1 and segments() == [1, 3]
+    assert [(r[0], r[2], int(r[4].sum())) for r in StepJournal.read(tmp_path)] == [
+        (1, 20, 7 * image.numel()), (1, 30, 7 * image.numel())]
+    journal.delete_older_than((1, 10 ** 12))
     assert segments() == [3]  # never the one being written
     journal.close()

@@ -8,7 +8,7 @@ raises ``ImageFormatError`` with a message fit for a log line.
 
 import array
 import sys
-from typing import NamedTuple
+from typing import NamedTuple, Optional, Tuple
 
 import numpy as np
 
@@ -29,10 +29,11 @@ ENCODINGS = {
 }
 
 
-def image_to_numpy(msg) -> np.ndarray:
+def image_to_numpy(msg, shape: Optional[Tuple[int, int]] = None) -> np.ndarray:
     """
     Decode a sensor_msgs/Image into an (h, w, c) array, or (h, w) for one channel.
 
+    ``shape`` (height, width), if given, is checked before anything is decoded or copied.
     Returns a fresh, C-contiguous array that does not alias the message.
     """
     enc = ENCODINGS.get(msg.encoding)
@@ -40,6 +41,8 @@ def image_to_numpy(msg) -> np.ndarray:
         raise ImageFormatError(
             f'unsupported encoding {msg.encoding!r} (supported: {", ".join(ENCODINGS)})')
     height, width, step = int(msg.height), int(msg.width), int(msg.step)
+    if shape is not None and (height, width) != tuple(shape):
+        raise ImageFormatError(f'size {width}x{height}, {shape[1]}x{shape[0]} expected')
     if height <= 0 or width <= 0:
         raise ImageFormatError(f'empty image {width}x{height}')
     row_bytes = width * enc.channels * enc.dtype.itemsize

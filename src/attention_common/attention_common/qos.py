@@ -4,7 +4,7 @@ QoS profiles of the graph, chosen on purpose and named once.
 - Frames and actions are RELIABLE: in lockstep the env waits for the action that answers each
   observation, so a lost frame would stall a step until ``action_timeout``.
 - A person's words (``utterance``, ``feedback``) are RELIABLE and VOLATILE, which is exactly what
-  ``ros2 topic pub`` offers by default; a deep history keeps bursts.
+  ``ros2 topic pub`` offers by default; KEEP_ALL history keeps bursts whole.
 - Status and metrics are for viewers: reliable, shallow.
 - ``/clock`` follows rclpy's own time source (best-effort subscriber, depth 1); a reliable
   publisher serves both kinds of subscriber.
@@ -31,8 +31,16 @@ ACTIONS = _reliable(10)
 STEP_DATA = _reliable(50)
 """agent_position, env_status: one small message per step; a burst must not be lost."""
 
-HUMAN = _reliable(100)
-"""utterance, feedback and their stamped companions: a person's words are never dropped."""
+HUMAN = QoSProfile(
+    history=HistoryPolicy.KEEP_ALL,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.VOLATILE,
+)
+"""utterance, feedback and their stamped companions: a person's words are never dropped.
+
+KEEP_ALL on both sides: a reliable writer keeps each message until every reader has it, and a
+reader keeps every message until its node takes it, so a burst waits instead of being
+overwritten (a depth of 100 lost 9,534 of 10,000 feedback sent at once)."""
 
 METRICS = _reliable(10)
 """metrics."""

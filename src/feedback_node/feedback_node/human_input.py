@@ -9,9 +9,7 @@ import math
 from typing import Optional
 
 from attention_common.feedback import FEEDBACK_RANGE
-
-MAX_UTTERANCE_CHARS = 500
-"""Longer than any sentence a trainer says (Figure 5.1's longest is 57 characters)."""
+from attention_common.utterance import MAX_UTTERANCE_CHARS
 
 EXCERPT_CHARS = 60
 

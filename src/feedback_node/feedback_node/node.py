@@ -33,7 +33,6 @@ from rclpy.node import Node
 from std_msgs.msg import Float32, String
 
 HARDWARE_ID = 'synthetic_trainer'
-SUMMARY_PERIOD_S = 30.0
 
 # name: (default, description). Floats accept an integer too (utterance_interval:=0).
 PARAMETERS = {
@@ -59,6 +58,7 @@ PARAMETERS = {
     'feedback_delay_max': (0.0, 'Longest delay; drawn uniformly between the two.'),
     'feedback_noise': (0.0, 'Probability that the sign of h is flipped.'),
     'seed': (0, 'Seeds the human-like draws (probability, delay, noise).'),
+    'summary_period': (30.0, 'Wall seconds between the log lines of counts (when they changed).'),
 }
 
 
@@ -74,6 +74,9 @@ class FeedbackNode(Node):
         super().__init__('feedback_node', **kwargs)
         params = declare_parameters(self, PARAMETERS, runtime=('synthetic',))
         self._synthetic = bool(params.pop('synthetic'))
+        summary_period = params.pop('summary_period')
+        if summary_period <= 0:
+            raise StartupError(f'summary_period must be > 0, got {summary_period}')
         self._kind = params.pop('trainer')
         if self._kind not in TRAINERS:
             raise StartupError(f'trainer must be one of {TRAINERS}, got {self._kind!r}')
@@ -107,7 +110,7 @@ class FeedbackNode(Node):
         self.create_subscription(Float32, topics.FEEDBACK, self._on_heard_feedback, qos.HUMAN)
         self.add_on_set_parameters_callback(self._on_set_parameters)
         steady = Clock(clock_type=ClockType.STEADY_TIME)
-        self.create_timer(SUMMARY_PERIOD_S, self._log_summary, clock=steady)
+        self.create_timer(summary_period, self._log_summary, clock=steady)
         self._last_summary = None
         self.get_logger().info(f'feedback_node ready: {self._mode_text()}')
 

@@ -16,7 +16,7 @@ import traceback
 from attention_common import qos, topics
 from attention_common.image_codec import image_to_numpy, ImageFormatError, numpy_to_image
 from attention_common.node_main import run_node, StartupError
-from attention_common.stamps import NS_PER_S, stamp_to_ns
+from attention_common.stamps import NS_PER_S, stamp_to_ns, StampGuard
 from diagnostic_msgs.msg import DiagnosticArray
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.node import Node
@@ -29,8 +29,6 @@ from saliency_node.settings import PARAMETERS, Settings
 from saliency_node.timeline import Timeline
 from sensor_msgs.msg import Image
 from std_msgs.msg import String
-
-STATUS_PERIOD_S = 30.0
 
 
 def _kept_alive(callback):
@@ -65,8 +63,8 @@ class SaliencyNode(Node):
         self._maker = SaliencyMaker(objects, manifest.search_region, manifest.background,
                                     self.settings.method)
         self._grounder = Grounder.from_manifest(manifest)
-        self._timeline = Timeline(self.settings.ttl_ns, self.settings.observation_buffer,
-                                  self.settings.require_utterance)
+        self._timeline = self._new_timeline()
+        self._guard = StampGuard(self.settings.max_stamp_jump_ns)
         self._last_stamped = None  # (wall time, text) of the last stamped utterance
         self._recent_plain = None  # (wall time, text, Utterance) of the last plain one used
         self.counters = collections.Counter()
@@ -78,7 +76,7 @@ class SaliencyNode(Node):
         self.create_subscription(String, topics.UTTERANCE, self._on_utterance, qos.HUMAN)
         self.create_subscription(DiagnosticArray, topics.UTTERANCE_STAMPED,
                                  self._on_utterance_stamped, qos.HUMAN)
-        self._status_timer = self.create_timer(STATUS_PERIOD_S, self._log_status)
+        self._status_timer = self.create_timer(self.settings.status_period, self._log_status)
         self.get_logger().info(
             f'ready: mode {self.config.mode}, {len(objects)} objects '
             f'({", ".join(o.name for o in objects)}) from {manifest.folder / "manifest.yaml"}')
@@ -86,6 +84,10 @@ class SaliencyNode(Node):
     @property
     def config(self) -> SaliencyConfig:
         return self.settings.saliency
+
+    def _new_timeline(self) -> Timeline:
+        return Timeline(self.settings.ttl_ns, self.settings.observation_buffer,
+                        self.settings.require_utterance)
 
     # Parameters ---------------------------------------------------------------------------
 
@@ -96,9 +98,9 @@ class SaliencyNode(Node):
 
     def _on_set_parameters(self, params) -> SetParametersResult:
         changes = {p.name: p.value for p in params}
-        if 'templates_manifest' in changes:
-            return SetParametersResult(successful=False,
-                                       reason='templates_manifest is read at start only')
+        for name in ('templates_manifest', 'status_period'):
+            if name in changes:
+                return SetParametersResult(successful=False, reason=f'{name} is read at start only')
         try:
             settings = Settings.from_values(self._values(changes))
         except ValueError as error:
@@ -113,6 +115,7 @@ class SaliencyNode(Node):
         self._timeline.ttl_ns = settings.ttl_ns
         self._timeline.capacity = settings.observation_buffer
         self._timeline.require_utterance = settings.require_utterance
+        self._guard.max_jump_ns = settings.max_stamp_jump_ns
         return SetParametersResult(successful=True)
 
     # Observations -------------------------------------------------------------------------
@@ -123,16 +126,14 @@ class SaliencyNode(Node):
         try:
             if msg.encoding != 'rgb8':
                 raise ImageFormatError(f'encoding {msg.encoding!r}, rgb8 expected')
-            frame = image_to_numpy(msg)
-            if frame.shape[:2] != self._frame_shape:
-                raise ImageFormatError(
-                    f'size {frame.shape[1]}x{frame.shape[0]}, '
-                    f'{self._frame_shape[1]}x{self._frame_shape[0]} expected')
+            frame = image_to_numpy(msg, self._frame_shape)  # a wrong size is never copied
         except ImageFormatError as error:
             self.counters['observations_malformed'] += 1
             self.get_logger().error(
                 f'observation at {stamp / NS_PER_S:.3f}s dropped: {error} '
                 f'({self.counters["observations_malformed"]} malformed so far)')
+            return
+        if not self._on_timeline(stamp):
             return
         if self.config.mode == 'off':
             self.counters['observations_dropped_off'] += 1
@@ -154,6 +155,25 @@ class SaliencyNode(Node):
             else:
                 self.get_logger().info(holding)
         self._render(released)
+
+    def _on_timeline(self, stamp: int) -> bool:
+        """Check an observation's stamp against the stream's (StampGuard); False: dropped."""
+        verdict = self._guard.check(stamp)
+        if verdict == 'implausible':
+            self.counters['observations_implausible_stamp'] += 1
+            self.get_logger().warning(
+                f'observation at {stamp / NS_PER_S:.3f}s dropped: more than '
+                f'{self.settings.max_stamp_jump_ns / NS_PER_S:g} s from the newest '
+                f'({self.counters["observations_implausible_stamp"]} so far)')
+            return False
+        if verdict == 'restart':
+            self.counters['stamp_restarts'] += 1
+            self.counters['observations_dropped_restart'] += self._timeline.held
+            self._timeline = self._new_timeline()
+            self.get_logger().warning(
+                f'observation stamps started over at {stamp / NS_PER_S:.3f}s (a new env): '
+                'utterances and held observations of the old timeline are forgotten')
+        return True
 
     def _render(self, released) -> None:
         for release in released:
@@ -177,8 +197,8 @@ class SaliencyNode(Node):
 
     # The synthetic trainer publishes each utterance twice: on utterance_stamped and, for
     # viewers, as a plain utterance; the two can arrive in either order. A plain utterance is
-    # its copy when a stamped one with the same text came within stamped_stream_timeout (wall),
-    # or when the stamped stream is active at all; a copy that came first is withdrawn.
+    # its copy when a stamped one with the same text came within stamped_stream_timeout (wall);
+    # a copy that came first is withdrawn. A person's words of another text are always heard.
 
     @_kept_alive
     def _on_utterance(self, msg: String) -> None:
@@ -187,10 +207,11 @@ class SaliencyNode(Node):
             return
         now = time.monotonic()
         window = self.settings.stamped_stream_timeout
-        if self._last_stamped is not None and now - self._last_stamped[0] < window:
+        if (self._last_stamped is not None and now - self._last_stamped[0] < window
+                and self._last_stamped[1] == text):
             self.counters['utterances_duplicate'] += 1
-            self.get_logger().debug(f'plain utterance {text[:80]!r} taken as the stamped '
-                                    "stream's copy")
+            self.get_logger().debug(f'plain utterance {text[:80]!r} is the copy of the stamped '
+                                    'one just heard: used once')
             return
         utterance = self._accept(text, None, 'utterance')
         self._recent_plain = (now, text, utterance)
@@ -206,6 +227,14 @@ class SaliencyNode(Node):
         text = self._checked_text(msg.status[0].message, 'utterance_stamped')
         if text is None:
             return
+        stamp = stamp_to_ns(msg.header.stamp)
+        if not self._guard.plausible(stamp):
+            self.counters['utterances_implausible_stamp'] += 1
+            self.get_logger().warning(
+                f'utterance_stamped {text[:80]!r} dropped: its stamp {stamp / NS_PER_S:.3f}s '
+                f'is more than {self.settings.max_stamp_jump_ns / NS_PER_S:g} s from the newest '
+                f'observation ({self._guard.newest / NS_PER_S:.3f}s)')
+            return
         now = time.monotonic()
         self._last_stamped = (now, text)
         if self._recent_plain is not None:
@@ -217,7 +246,7 @@ class SaliencyNode(Node):
                 self.get_logger().debug(f'plain utterance {text[:80]!r} was the copy of this '
                                         'stamped one: withdrawn')
             self._recent_plain = None
-        self._accept(text, stamp_to_ns(msg.header.stamp), 'utterance_stamped')
+        self._accept(text, stamp, 'utterance_stamped')
 
     def _accept(self, text: str, stamp_ns, source: str):
         grounding = self._grounder.ground(text)

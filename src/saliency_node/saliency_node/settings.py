@@ -8,6 +8,9 @@ Numbers accept an integer or a float (``-p utterance_ttl:=5`` and ``:=5.0`` both
 from dataclasses import dataclass
 from typing import Mapping
 
+from attention_common.stamps import MAX_STAMP_JUMP_S
+from attention_common.utterance import MAX_UTTERANCE_CHARS
+
 from saliency_node.matching import method_from_name
 from saliency_node.saliency import MODES, SaliencyConfig
 
@@ -26,10 +29,14 @@ PARAMETERS = (
     ('templates_manifest', '', "Template manifest YAML; empty: the packaged one (Montezuma's "
      'Revenge, Room 1). Read at start only.'),
     ('observation_buffer', 64, 'Observations held while waiting for a late stamped utterance.'),
-    ('max_utterance_chars', 2000, 'Longer utterances are logged and dropped.'),
-    ('stamped_stream_timeout', 5.0, 'Wall seconds after a stamped utterance during which plain '
-     'utterances are taken as its copies and not used twice.'),
+    ('max_utterance_chars', MAX_UTTERANCE_CHARS, 'Longer utterances are logged and dropped.'),
+    ('stamped_stream_timeout', 5.0, 'Wall seconds after a stamped utterance during which a plain '
+     'utterance of the same text is taken as its copy and not used twice.'),
+    ('max_stamp_jump', MAX_STAMP_JUMP_S, 'Simulation seconds: an observation or stamped '
+     'utterance stamped further than this from the newest observation is dropped with a warning '
+     '(3 such observations in a row that continue each other: the env started over).'),
     ('publish_mask', True, 'Also publish the mask (mono8, 0 or 255) on saliency_mask.'),
+    ('status_period', 30.0, 'Wall seconds between the log lines of counts. Read at start only.'),
 )
 DEFAULTS = {name: default for name, default, _ in PARAMETERS}
 
@@ -62,8 +69,10 @@ class Settings:
     observation_buffer: int
     max_utterance_chars: int
     stamped_stream_timeout: float
+    max_stamp_jump_ns: int
     publish_mask: bool
     templates_manifest: str
+    status_period: float
 
     @classmethod
     def from_values(cls, values: Mapping) -> 'Settings':
@@ -84,5 +93,7 @@ class Settings:
             observation_buffer=_number(values, 'observation_buffer', 1, True),
             max_utterance_chars=_number(values, 'max_utterance_chars', 1, True),
             stamped_stream_timeout=_number(values, 'stamped_stream_timeout', 0.0),
+            max_stamp_jump_ns=int(round(_number(values, 'max_stamp_jump', 1e-3) * 1e9)),
             publish_mask=_flag(values, 'publish_mask'),
-            templates_manifest=values['templates_manifest'])
+            templates_manifest=values['templates_manifest'],
+            status_period=_number(values, 'status_period', 0.001))

@@ -15,6 +15,8 @@ import threading
 import time
 from typing import Callable, List, Optional, Tuple
 
+from attention_common.stamps import NS_PER_S, StampGuard
+from attention_common.utterance import MAX_UTTERANCE_CHARS
 import cv2
 import numpy as np
 from tamer_node.buffer import FeedbackBuffer
@@ -30,7 +32,6 @@ from tamer_node.worker import ActingModel, FeedbackEvent, LearnerWorker, Snapsho
 import torch
 
 DEFAULT_ENCODER = Path(__file__).resolve().parent / 'weights' / 'encoder.pt'
-MAX_UTTERANCE_CHARS = 10_000
 HOW_TO_BUILD_ENCODER = ('build it with `tamer_pretrain` (writes tamer_node/weights/encoder.pt, '
                         'a few minutes on one core) or set encoder_path')
 
@@ -99,8 +100,10 @@ class TamerAgent:
         # Every key exists from the start, so readers never see the dict change size.
         self.counters = collections.Counter(dict.fromkeys((
             'act/count', 'act/fallback_observation', 'drop/observation', 'drop/saliency',
-            'utterance/count', 'utterance/empty', 'feedback/logged', 'disk/feedback_log_errors'),
-            0))
+            'drop/observation_stamp', 'drop/saliency_stamp', 'session/restarts',
+            'utterance/count', 'utterance/empty', 'utterance/too_long', 'feedback/logged',
+            'disk/feedback_log_errors'), 0))
+        self._guard = StampGuard(int(round(config.max_stamp_jump_s * NS_PER_S)))
         self._feedback_lock = threading.Lock()  # seq order == log order == inbox order
         # input_image 'saliency': observations waiting for their saliency image (stamp ->
         # monotonic arrival time); answered on the observation after saliency_timeout_s.
@@ -163,19 +166,47 @@ class TamerAgent:
         records = StepJournal.read(self.run_dir / STEPS_DIR, segments)
         replayed = self.worker.restore(checkpoint, events, records)
         self.journal.adopt(segments)
-        stamps = [r.stamp for r in self.history.records()]
-        self._now = max(stamps) if stamps else None
+        # This process is a new session: the env's stamps start over, and its steps must never
+        # be taken for an earlier session's steps with the same stamps.
+        earlier = [session for session, _ in segments.values()]
+        earlier += [e.session for e in events]
+        earlier.append(int(checkpoint.get('session', 1)) if checkpoint else 0)
+        self._set_session(max(earlier) + 1)
         self._log('info', f'resumed {self.run_dir}: checkpoint '
                   f'{"at feedback #%d" % checkpoint["applied_seq"] if checkpoint else "none"}, '
                   f'{replayed} logged feedback replayed, buffer {len(self.buffer)}, '
-                  f'model version {self.learner.updates}')
+                  f'model version {self.learner.updates}; now session {self.session}')
         return replayed
+
+    @property
+    def session(self) -> int:
+        """The run's session (see persistence.py): 1, and one more per resume or env restart."""
+        return self.history.session
+
+    def _set_session(self, session: int) -> None:
+        self.history.start_session(session)
+        self.journal.session = session
+        with self._awaiting_lock:
+            self._awaiting.clear()
+        self._now = None
 
     # Acting path.
     def on_observation(self, stamp: int, rgb: np.ndarray) -> Optional[int]:
         """Store observation ``stamp``; return the greedy action if the agent acts on it."""
         started = time.perf_counter()
         image = self._preprocess('observation', rgb)
+        verdict = self._guard.check(stamp)
+        if verdict == 'implausible':
+            self.counters['drop/observation_stamp'] += 1
+            raise BadInput(f'observation dropped: its stamp {stamp / NS_PER_S:.3f}s is more '
+                           f'than {self.config.max_stamp_jump_s:g} s from the newest '
+                           f'({self._guard.newest / NS_PER_S:.3f}s)')
+        if verdict == 'restart':
+            self.counters['session/restarts'] += 1
+            self._set_session(self.session + 1)
+            self._log('warn', f'observation stamps started over at {stamp / NS_PER_S:.3f}s (a '
+                      f'new env): session {self.session} begins; feedback on earlier steps is '
+                      'kept in the log, not learned from')
         self._now = stamp if self._now is None else max(self._now, stamp)
         self.worker.tick(stamp)  # simulation time for the minibatch schedule
         record = self.history.put_image('observation', stamp, image)
@@ -194,6 +225,11 @@ class TamerAgent:
         """Store saliency image ``stamp``; return the action if the agent acts on saliency."""
         started = time.perf_counter()
         image = self._preprocess('saliency', rgb)
+        if not self._guard.plausible(stamp):
+            self.counters['drop/saliency_stamp'] += 1
+            raise BadInput(f'saliency image dropped: its stamp {stamp / NS_PER_S:.3f}s is '
+                           f'more than {self.config.max_stamp_jump_s:g} s from the newest '
+                           'observation')
         record = self.history.put_image('saliency', stamp, image)
         self.journal.append(KIND_SALIENCY, stamp, image=image)
         self.worker.wake()
@@ -289,10 +325,11 @@ class TamerAgent:
         with self._feedback_lock:
             self._seq += 1
             event = FeedbackEvent(self._seq, h, stamp, self._now, status, self.config.credit,
-                                  arrived)
+                                  arrived, self.session)
             entry = {'kind': 'feedback', 'seq': event.seq, 'wall_time': time.time(),
                      'source': source, 'h': json_number(h), 'stamp_ns': stamp,
-                     'now_ns': event.now, 'status': status, 'credit': event.credit}
+                     'now_ns': event.now, 'session': event.session, 'status': status,
+                     'credit': event.credit}
             entry.update(extra or {})
             # One FIFO queue: feedback reaches the log and then the learner in arrival order.
             self.disk.submit(lambda: self._log_then_learn(entry, event))
@@ -316,16 +353,30 @@ class TamerAgent:
                       f'{self.feedback_log.path}: {error}')
         self.worker.submit(event)
 
-    def on_utterance(self, text: str) -> None:
-        """Record an utterance in the feedback log (the saliency node turns it into images)."""
-        stripped = text.strip()
+    def on_utterance(self, text: str) -> str:
+        """
+        Record an utterance in the feedback log (the saliency node turns it into images).
+
+        Returns its status: 'ok', or 'empty' / 'too_long' (longer than MAX_UTTERANCE_CHARS),
+        which are counted, warned about and logged with that status (a long one's first
+        MAX_UTTERANCE_CHARS characters), as the saliency node drops them too.
+        """
         self.counters['utterance/count'] += 1
-        if not stripped:
+        status = 'ok'
+        if not text.strip():
+            status = 'empty'
             self.counters['utterance/empty'] += 1
+            self._log('warn', 'utterance dropped: empty or only whitespace (logged as such)')
+        elif len(text) > MAX_UTTERANCE_CHARS:
+            status = 'too_long'
+            self.counters['utterance/too_long'] += 1
+            self._log('warn', f'utterance dropped: {len(text)} characters, more than '
+                      f'{MAX_UTTERANCE_CHARS} (its start is logged)')
         entry = {'kind': 'utterance', 'wall_time': time.time(), 'now_ns': self._now,
-                 'text': text[:MAX_UTTERANCE_CHARS],
-                 'truncated': len(text) > MAX_UTTERANCE_CHARS}
+                 'session': self.session, 'status': status, 'chars': len(text),
+                 'text': text[:MAX_UTTERANCE_CHARS]}
         self.disk.submit(lambda: self.feedback_log.append(entry))
+        return status
 
     def set_alpha(self, alpha: float) -> None:
         if not (math.isfinite(alpha) and alpha >= 0.0):
@@ -375,4 +426,4 @@ def event_from_entry(entry: dict) -> FeedbackEvent:
     return FeedbackEvent(
         seq=int(entry['seq']), h=float(h) if h is not None else math.nan,
         stamp=entry.get('stamp_ns'), now=entry.get('now_ns'), status=entry.get('status', 'ok'),
-        credit=entry.get('credit', 'step'), arrived=0.0)
+        credit=entry.get('credit', 'step'), arrived=0.0, session=int(entry.get('session', 1)))

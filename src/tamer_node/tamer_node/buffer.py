@@ -27,6 +27,9 @@ class Sample(NamedTuple):
     """The step's stamp, ns."""
     seq: int
     """Sequence number of the feedback that made it (its line in feedback_log.jsonl)."""
+    session: int = 1
+    """The run's session the step belongs to (stamps restart with each env): with ``stamp``,
+    the step's identity in the run."""
 
 
 class Batch(NamedTuple):
@@ -64,7 +67,8 @@ def collate(samples: List[Sample]) -> Batch:
 
 # Per-sample columns of the ring (besides the two images).
 _COLUMNS = {'has_companion': np.bool_, 'actions': np.int64, 'h': np.float32,
-            'weights': np.float32, 'stamps': np.int64, 'seqs': np.int64}
+            'weights': np.float32, 'stamps': np.int64, 'seqs': np.int64,
+            'sessions': np.int64}
 
 
 class FeedbackBuffer:
@@ -105,7 +109,7 @@ class FeedbackBuffer:
                 for name, value in (('has_companion', has_companion),
                                     ('actions', sample.action), ('h', sample.h),
                                     ('weights', sample.weight), ('stamps', sample.stamp),
-                                    ('seqs', sample.seq)):
+                                    ('seqs', sample.seq), ('sessions', sample.session)):
                     self.columns[name][i] = value
                 self._next = (i + 1) % self.capacity
                 self._size = min(self._size + 1, self.capacity)
@@ -143,7 +147,7 @@ class FeedbackBuffer:
                     torch.from_numpy(self.companions[i].copy()) if has else None,
                     int(self.columns['actions'][i]), float(self.columns['h'][i]),
                     float(self.columns['weights'][i]), int(self.columns['stamps'][i]),
-                    int(self.columns['seqs'][i])))
+                    int(self.columns['seqs'][i]), int(self.columns['sessions'][i])))
             return out
 
     def __len__(self) -> int:
@@ -161,8 +165,8 @@ class FeedbackBuffer:
         """
         Return a consistent copy, oldest first, for ``torch.load(weights_only=True)``.
 
-        ``images=False`` leaves the images out (the caller can find them again by stamp):
-        a few hundred kB instead of up to 170 MB.
+        ``images=False`` leaves the images out (the caller finds them again by session and
+        stamp): a few hundred kB instead of up to 170 MB.
         """
         with self._lock:
             order = self._order()

@@ -6,6 +6,8 @@ from dataclasses import dataclass
 import inspect
 from typing import Dict
 
+from attention_common.stamps import MAX_STAMP_JUMP_S
+
 CREDIT_MODES = ('step', 'window')
 INPUT_IMAGES = ('observation', 'saliency')
 UPDATE_CLOCKS = ('sim', 'wall')
@@ -49,8 +51,13 @@ class TamerConfig:
     """Wall seconds after a stamped feedback during which plain feedback counts as its copy."""
     feedback_limit: float = 100.0
     """Largest |h| accepted; larger (and NaN/inf) feedback is logged, counted and not learned."""
+    max_stamp_jump_s: float = MAX_STAMP_JUMP_S
+    """Simulation seconds: an image stamped further than this from the newest observation is
+    dropped with a warning (3 such observations in a row that continue each other: the env
+    started over, and a new session of the run begins)."""
     checkpoint_period_s: float = 60.0
-    """Wall seconds between atomic checkpoints in <run_dir>/checkpoints (0 = only at exit)."""
+    """Longest wall time between atomic checkpoints in <run_dir>/checkpoints: the first comes
+    after the first update, then 1, 2, 4, ... s apart up to this (0 = only at exit)."""
     metrics_period_s: float = 1.0
     """Wall seconds between metrics messages (and rows of metrics.csv)."""
     fine_tune_encoder: bool = False
@@ -97,6 +104,7 @@ class TamerConfig:
             'history_steps': self.history_steps >= 2,
             'stamped_active_s': self.stamped_active_s >= 0.0,
             'feedback_limit': self.feedback_limit > 0.0,
+            'max_stamp_jump_s': self.max_stamp_jump_s > 0.0,
             'checkpoint_period_s': self.checkpoint_period_s >= 0.0,
             'metrics_period_s': self.metrics_period_s > 0.0,
             'head_hidden': self.head_hidden >= 1,

@@ -47,12 +47,13 @@ def other_kind(kind: str) -> str:
 
 
 class StepHistory:
-    """The newest ``capacity`` steps."""
+    """The newest ``capacity`` steps of one session of the run (stamps are unique in it)."""
 
-    def __init__(self, capacity: int):
+    def __init__(self, capacity: int, session: int = 1):
         if capacity < 1:
             raise ValueError('capacity must be at least 1')
         self.capacity = capacity
+        self.session = session
         self._records: 'collections.OrderedDict[int, StepRecord]' = collections.OrderedDict()
         self._newest: Dict[str, int] = {}
         self._lock = threading.Lock()
@@ -115,6 +116,13 @@ class StepHistory:
         """Return copies of all records, oldest first."""
         with self._lock:
             return [dataclasses.replace(r) for r in self._records.values()]
+
+    def start_session(self, session: int) -> None:
+        """Forget every step: the stamps start over (a new env) in ``session``."""
+        with self._lock:
+            self._records.clear()
+            self._newest.clear()
+            self.session = session
 
     def __len__(self) -> int:
         with self._lock:

@@ -29,10 +29,13 @@ from sensor_msgs.msg import Image, Joy
 from std_msgs.msg import Float32, Header, String
 from tamer_node.agent import BadInput, default_run_dir, share_the_cpu, TamerAgent
 from tamer_node.config import field_docs, TamerConfig
+from tamer_node.model import FRAME_SHAPE
 from tamer_node.persistence import json_number
 
 RUNTIME_PARAMETERS = ('alpha',)
 LOG_THROTTLE_S = 5.0
+DROPS_LOGGED_IN_FULL = 20
+"""The first drops of images each get a line (each kind of bad input is seen); then throttled."""
 
 
 class TamerNode(Node):
@@ -63,6 +66,7 @@ class TamerNode(Node):
         self.create_subscription(String, topics.UTTERANCE, self._on_utterance, qos.HUMAN)
         self.create_timer(self.config.metrics_period_s, self._publish_metrics)
         self._frame_id = ''
+        self._drops = 0
         if self.config.input_image == 'saliency':
             # A step whose saliency image does not come is answered on its observation.
             period = min(0.05, max(0.005, self.config.saliency_timeout_s / 5))
@@ -114,14 +118,20 @@ class TamerNode(Node):
 
     def _handle_image(self, msg: Image, kind: str, handler) -> None:
         try:
-            rgb = image_to_numpy(msg)
+            if msg.encoding != 'rgb8':
+                raise ImageFormatError(f'encoding {msg.encoding!r}, rgb8 expected')
+            rgb = image_to_numpy(msg, FRAME_SHAPE[:2])  # a wrong size is never copied
             action = handler(stamp_to_ns(msg.header.stamp), rgb)
             self._frame_id = msg.header.frame_id
         except (ImageFormatError, BadInput) as error:
             if isinstance(error, ImageFormatError):
                 self.agent.counters[f'drop/{kind}'] += 1
-            self.get_logger().warning(f'{kind} dropped ({error})',
-                                      throttle_duration_sec=LOG_THROTTLE_S)
+            self._drops += 1
+            text = f'{kind} dropped ({error}; {self._drops} images dropped so far)'
+            if self._drops <= DROPS_LOGGED_IN_FULL:
+                self.get_logger().warning(text)
+            else:
+                self.get_logger().warning(text, throttle_duration_sec=LOG_THROTTLE_S)
             return
         if action is not None:
             self._publish_action(msg.header, action)
@@ -149,10 +159,10 @@ class TamerNode(Node):
         self.agent.on_feedback(msg.data, 'plain')
 
     def _on_utterance(self, msg: String) -> None:
-        text = msg.data
-        shown = text if len(text) <= 200 else text[:200] + f'... ({len(text)} characters)'
-        self.get_logger().info(f'utterance: {shown!r}')
-        self.agent.on_utterance(text)
+        if self.agent.on_utterance(msg.data) == 'ok':
+            text = msg.data
+            shown = text if len(text) <= 200 else text[:200] + f'... ({len(text)} characters)'
+            self.get_logger().info(f'utterance: {shown!r}')
 
     def _log(self, level: str, text: str) -> None:
         logger = self.get_logger()

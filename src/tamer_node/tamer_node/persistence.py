@@ -5,14 +5,17 @@ Everything a run writes to <run_dir>, so that a crash loses nothing a person sai
   flushed before the feedback is used (survives ``kill -9``; a power cut may lose the page
   cache's last lines, as with any file not fsync'ed).
 - ``steps/segment-NNNNNN.bin``: a journal of the steps (preprocessed images, chosen actions),
-  written a few records at a time. It holds the buffer's images (so a checkpoint need not copy
+  written a few records at a time. A step is known by its session and stamp: the env's stamps
+  start over when it is started again (a resume), and each tamer_node start, or restart of the
+  observation stamps, begins a new session of the run, so steps of two sessions never mix. It holds the buffer's images (so a checkpoint need not copy
   up to 170 MB of them every time, which would stall the process) and the steps that feedback
   logged after the last checkpoint refers to (replayed on resume). A new segment starts at every
-  checkpoint; a segment is deleted once every step in it is older than anything the newest
-  checkpoint still needs.
+  checkpoint; a segment is deleted once every step in it is older (session, then stamp) than
+  anything the newest checkpoint still needs.
 - ``checkpoints/checkpoint.pt``: model, optimizer, buffer (its columns; the images are found in
   the journal by stamp), counters; written to a temporary file and moved into place with
   ``os.replace`` (a reader sees the old or the new one, never half).
+- Every feedback line of ``feedback_log.jsonl`` names its ``session`` with its ``stamp_ns``.
 - ``metrics.csv``: one row per metrics period.
 """
 
@@ -39,10 +42,12 @@ STEPS_DIR = 'steps'
 
 KIND_OBSERVATION, KIND_SALIENCY, KIND_ACTION = 1, 2, 3
 KIND_NAMES = {KIND_OBSERVATION: 'observation', KIND_SALIENCY: 'saliency'}
-_MAGIC = b'TMJ2'
-# magic, kind, stamp ns, action, rows, columns, payload bytes (the pixels, zlib level 1: Atari
-# frames shrink ~13x, blurred saliency images ~6x, for ~40 us each on the disk thread).
-_HEADER = struct.Struct('<4sBqhHHI')
+_MAGIC = b'TMJ3'  # /3: each record names its session
+# magic, kind, session, stamp ns, action, rows, columns, payload bytes (the pixels, zlib level
+# 1: Atari frames shrink ~13x, blurred saliency images ~6x, for ~40 us each on the disk thread).
+_HEADER = struct.Struct('<4sBHqhHHI')
+StepKey = Tuple[int, int]
+"""(session, stamp ns): a step's identity in a run."""
 
 
 def json_number(value: float):
@@ -91,14 +96,16 @@ class FeedbackLog:
 class StepJournal:
     """Step records queued by the acting path (never blocks) and written by whoever drains."""
 
-    def __init__(self, directory: Path, segment: int = 0):
+    def __init__(self, directory: Path, segment: int = 0, session: int = 1):
         self.directory = Path(directory)
         self.directory.mkdir(parents=True, exist_ok=True)
         self._queue = collections.deque()  # append/popleft are atomic: no lock on the hot path
         self._lock = threading.Lock()      # serializes drains (file writes)
         self.segment = segment
+        self.session = session
+        """The session that records appended from now on belong to."""
         self._last_segment = segment
-        self._newest: Dict[int, int] = {}  # segment -> newest stamp in it
+        self._newest: Dict[int, StepKey] = {}  # segment -> newest step in it
         self._file = open(self.segment_path(segment), 'ab')
 
     def segment_path(self, segment: int) -> Path:
@@ -106,7 +113,7 @@ class StepJournal:
 
     def append(self, kind: int, stamp: int, action: int = -1,
                image: Optional[torch.Tensor] = None) -> None:
-        self._queue.append(('record', kind, stamp, action, image))
+        self._queue.append(('record', self.session, kind, stamp, action, image))
 
     def rotate(self) -> int:
         """Queue the switch to a new segment file (after what is queued now); return its index."""
@@ -127,30 +134,31 @@ class StepJournal:
                     self.segment = item[1]
                     self._file = open(self.segment_path(self.segment), 'ab')
                     continue
-                _, kind, stamp, action, image = item
-                self._newest[self.segment] = max(stamp, self._newest.get(self.segment, stamp))
+                _, session, kind, stamp, action, image = item
+                key = (session, stamp)
+                self._newest[self.segment] = max(key, self._newest.get(self.segment, key))
                 payload = b'' if image is None else zlib.compress(image.numpy().tobytes(), 1)
                 rows, cols = (0, 0) if image is None else image.shape
-                self._file.write(_HEADER.pack(_MAGIC, kind, stamp, action, rows, cols,
+                self._file.write(_HEADER.pack(_MAGIC, kind, session, stamp, action, rows, cols,
                                               len(payload)))
                 self._file.write(payload)
                 written += 1
             self._file.flush()
         return written
 
-    def adopt(self, newest: Dict[int, int]) -> None:
-        """Take over the segments of an earlier process ({segment: newest stamp in it})."""
+    def adopt(self, newest: Dict[int, StepKey]) -> None:
+        """Take over the segments of an earlier process ({segment: newest step in it})."""
         with self._lock:
             for segment, stamp in newest.items():
                 if segment != self.segment:
                     self._newest[segment] = stamp
 
-    def delete_older_than(self, stamp: int) -> int:
-        """Delete the finished segments that hold only steps older than ``stamp``."""
+    def delete_older_than(self, key: StepKey) -> int:
+        """Delete the finished segments that hold only steps older than ``key``."""
         deleted = 0
         with self._lock:
             for segment, newest in list(self._newest.items()):
-                if segment != self.segment and newest < stamp:
+                if segment != self.segment and newest < tuple(key):
                     self.segment_path(segment).unlink(missing_ok=True)
                     del self._newest[segment]
                     deleted += 1
@@ -162,13 +170,13 @@ class StepJournal:
             self._file.close()
 
     @staticmethod
-    def read(directory: Path, newest: Optional[Dict[int, int]] = None
-             ) -> Iterator[Tuple[int, int, int, object]]:
+    def read(directory: Path, newest: Optional[Dict[int, StepKey]] = None
+             ) -> Iterator[Tuple[int, int, int, int, object]]:
         """
-        Yield (kind, stamp, action, image or None) from every segment, oldest first.
+        Yield (session, kind, stamp, action, image or None) from every segment, oldest first.
 
         A record cut short by a crash ends its segment's reading. ``newest``, if given, is
-        filled with {segment: newest stamp in it}.
+        filled with {segment: newest step in it}.
         """
         paths = sorted(Path(directory).glob('segment-*.bin'))
         for path in paths:
@@ -176,7 +184,8 @@ class StepJournal:
             data = path.read_bytes()
             offset = 0
             while offset + _HEADER.size <= len(data):
-                magic, kind, stamp, action, rows, cols, size = _HEADER.unpack_from(data, offset)
+                magic, kind, session, stamp, action, rows, cols, size = _HEADER.unpack_from(
+                    data, offset)
                 end = offset + _HEADER.size + size
                 if magic != _MAGIC or end > len(data):
                     break
@@ -191,8 +200,9 @@ class StepJournal:
                     image = torch.from_numpy(
                         np.frombuffer(pixels, np.uint8).reshape(rows, cols).copy())
                 if newest is not None:
-                    newest[segment] = max(stamp, newest.get(segment, stamp))
-                yield kind, stamp, action, image
+                    key = (session, stamp)
+                    newest[segment] = max(key, newest.get(segment, key))
+                yield session, kind, stamp, action, image
                 offset = end
 
     @staticmethod

@@ -41,7 +41,8 @@ counted (``train/skipped_updates``): then the study's conditions are not equal a
 metrics say so. ``update_clock: wall`` is the old fixed rate per wall second (no catching up).
 
 Checkpoints are taken by the learner between updates (consistent copies: every feedback up to
-``applied_seq`` is in the buffer and the counters, none after it) and written by the disk thread.
+``applied_seq`` is in the buffer and the counters, none after it) and written by the disk thread:
+after the first update, then ever less often up to ``checkpoint_period_s`` (``CheckpointClock``).
 """
 
 import collections
@@ -58,14 +59,14 @@ import numpy as np
 from tamer_node.buffer import collate, FeedbackBuffer, Sample
 from tamer_node.config import TamerConfig
 from tamer_node.credit import step_credit, window_credit
-from tamer_node.history import IMAGE_KINDS, other_kind, StepHistory
+from tamer_node.history import other_kind, StepHistory
 from tamer_node.learner import Learner
 from tamer_node.model import HModel, to_input
 from tamer_node.persistence import DiskWriter, KIND_NAMES, save_checkpoint, StepJournal
 from tamer_node.schedule import UpdateSchedule
 import torch
 
-CHECKPOINT_FORMAT = 'tamer_node.checkpoint/2'  # /2: standardized features, LeakyReLU head
+CHECKPOINT_FORMAT = 'tamer_node.checkpoint/3'  # /3: steps known by (session, stamp)
 
 COUNTERS = (
     'feedback/count', 'feedback/duplicates', 'feedback/invalid', 'feedback/unmatched',
@@ -73,6 +74,7 @@ COUNTERS = (
     'train/updates', 'train/immediate_updates', 'train/minibatch_updates', 'train/l2_updates',
     'train/skipped_nonfinite', 'train/errors',
     'checkpoint/count', 'resume/replayed', 'resume/samples_without_images',
+    'feedback/other_session',
 )
 
 
@@ -93,6 +95,8 @@ class FeedbackEvent:
     """Credit mode in force when it arrived."""
     arrived: float = 0.0
     """time.monotonic() at arrival (the saliency pairing deadline starts here)."""
+    session: int = 1
+    """The run's session its stamps belong to (see persistence.py)."""
 
 
 class SnapshotSlot:
@@ -250,8 +254,8 @@ class LearnerWorker(threading.Thread):
     # The thread.
     def run(self) -> None:
         schedule = self.schedule
-        checkpoint_period = self.config.checkpoint_period_s
-        next_checkpoint = time.monotonic() + checkpoint_period if checkpoint_period else math.inf
+        checkpoints = CheckpointClock(self.config.checkpoint_period_s)
+        next_checkpoint = math.inf
         while not self._stopping.is_set():
             self._wake.clear()
             now = time.monotonic()
@@ -264,9 +268,11 @@ class LearnerWorker(threading.Thread):
                     if schedule.take():
                         batch = self.buffer.sample(self.config.batch_size, self._rng)
                         self._update(batch, immediate=False)
+                progress = (self.learner.updates, self.applied_seq)
+                next_checkpoint = checkpoints.next_at(progress)
                 if now >= next_checkpoint:
-                    next_checkpoint = now + checkpoint_period
                     self.checkpoint()
+                    next_checkpoint = checkpoints.taken(progress, now)
             except Exception as error:  # the learner must outlive any one bad update
                 with self._lock:
                     self.counters['train/errors'] += 1
@@ -343,7 +349,12 @@ class LearnerWorker(threading.Thread):
         """Count the event and return its samples (already added to the buffer)."""
         samples: List[Sample] = []
         counts = collections.Counter({'feedback/processed': 1})
-        if event.status == 'ok':
+        if event.status == 'ok' and event.session != history.session:
+            counts['feedback/other_session'] += 1
+            self._log('warn', f'feedback #{event.seq} (h={event.h}) is on a step of session '
+                      f'{event.session}, and the steps held are of session {history.session} '
+                      '(the env started over): kept in the log, not learned from')
+        elif event.status == 'ok':
             credit = self._credit(event, history)
             kind = self.config.input_image
             for stamp, weight in sorted(credit.items()):
@@ -355,7 +366,7 @@ class LearnerWorker(threading.Thread):
                 counts['pairing/with_saliency' if companion is not None
                        else 'pairing/without_saliency'] += 1
                 samples.append(Sample(state, companion, record.action, float(event.h),
-                                      float(weight), stamp, event.seq))
+                                      float(weight), stamp, event.seq, history.session))
             if samples:
                 counts['feedback/count'] += 1
                 counts['samples/added'] += len(samples)
@@ -417,14 +428,19 @@ class LearnerWorker(threading.Thread):
         Copy the state now (learner thread, between updates); write it on the disk thread.
 
         The buffer goes in without its images: they are in the step journal, found again by
-        stamp on resume. The journal keeps every step the buffer or the history still holds.
+        session and stamp on resume. The journal keeps every step the buffer or the history
+        still holds.
         """
         segment = self.journal.rotate()
         buffer_state = self.buffer.state_dict(images=False)
-        stamps = buffer_state['columns']['stamps']
-        needed = [int(stamps.min())] if len(stamps) else []
+        needed = []
+        sessions = buffer_state['columns']['sessions'].numpy()
+        stamps = buffer_state['columns']['stamps'].numpy()
+        if len(stamps):
+            first = np.lexsort((stamps, sessions))[0]
+            needed.append((int(sessions[first]), int(stamps[first])))
         if self.history.oldest() is not None:
-            needed.append(self.history.oldest())
+            needed.append((self.history.session, self.history.oldest()))
         with self._lock:
             self.counters['checkpoint/count'] += 1
             counters = dict(self.counters)
@@ -435,6 +451,7 @@ class LearnerWorker(threading.Thread):
             'input_image': self.config.input_image,
             'counters': counters,
             'applied_seq': self.applied_seq,
+            'session': self.history.session,
             'saved_at': time.time(),
         }
 
@@ -449,9 +466,17 @@ class LearnerWorker(threading.Thread):
 
     def restore(self, checkpoint: Optional[dict], events: List[FeedbackEvent],
                 journal_records) -> int:
-        """Load a checkpoint, replay the logged feedback after it; return how many replayed."""
-        steps = StepHistory(capacity=1 << 30)
-        for kind, stamp, action, image in journal_records:
+        """
+        Load a checkpoint, replay the logged feedback after it; return how many replayed.
+
+        Each feedback is paired with the steps of its own session only. The live history
+        stays empty: this process is a new session, whose env stamps start over.
+        """
+        sessions: Dict[int, StepHistory] = {}
+        for session, kind, stamp, action, image in journal_records:
+            steps = sessions.get(session)
+            if steps is None:
+                steps = sessions[session] = StepHistory(capacity=1 << 30, session=session)
             if image is not None and kind in KIND_NAMES:
                 steps.put_image(KIND_NAMES[kind], stamp, image)
             elif action >= 0:
@@ -462,7 +487,7 @@ class LearnerWorker(threading.Thread):
             self.learner.load_state_dict(checkpoint['learner'])
             buffer_state = checkpoint['buffer']
             if 'states' not in buffer_state:
-                buffer_state = self._find_images(buffer_state, steps,
+                buffer_state = self._find_images(buffer_state, sessions,
                                                  checkpoint.get('input_image', 'observation'))
             self.buffer.load_state_dict(buffer_state)
             self.counters.update({k: int(v) for k, v in checkpoint['counters'].items()
@@ -472,25 +497,22 @@ class LearnerWorker(threading.Thread):
         replayed = 0
         for event in events:
             if event.seq > self.applied_seq:
-                self.process(event, steps)
+                self.process(event, sessions.get(event.session)
+                             or StepHistory(1, session=event.session))
                 replayed += 1
         with self._lock:
             self.counters['resume/replayed'] += replayed
-        for record in steps.records()[-self.history.capacity:]:
-            for kind in IMAGE_KINDS:
-                if record.image(kind) is not None:
-                    self.history.put_image(kind, record.stamp, record.image(kind))
-            if record.action is not None:
-                self.history.set_action(record.stamp, record.action)
         self.slot.publish(self.learner.updates, self.learner.snapshot())
         return replayed
 
-    def _find_images(self, state: dict, steps: StepHistory, kind: str) -> dict:
+    def _find_images(self, state: dict, sessions: Dict[int, StepHistory], kind: str) -> dict:
         """Put the journal's images back into a buffer state saved without them."""
         columns = {name: values.numpy() for name, values in state['columns'].items()}
         keep, states, companions = [], [], []
-        for row, (stamp, has) in enumerate(zip(columns['stamps'], columns['has_companion'])):
-            record = steps.get(int(stamp))
+        for row, (session, stamp, has) in enumerate(zip(
+                columns['sessions'], columns['stamps'], columns['has_companion'])):
+            steps = sessions.get(int(session))
+            record = steps.get(int(stamp)) if steps is not None else None
             image = record.image(kind) if record is not None else None
             companion = record.image(other_kind(kind)) if record is not None and has else None
             if image is None or (has and companion is None):
@@ -512,6 +534,37 @@ class LearnerWorker(threading.Thread):
             'states': torch.stack(states) if states else empty,
             'companions': torch.stack(companions) if companions else empty,
         }
+
+
+class CheckpointClock:
+    """
+    When the learner checkpoints: once it has learned something (an update, or feedback used),
+    then 1, 2, 4, ... s apart, at most ``period_s`` (0: only at exit), and only when it has
+    learned more since the last one.
+
+    So a kill -9 costs at most the minibatch updates of the last half of a short run, or of
+    ``period_s`` in a long one; feedback never (it is logged first and replayed on resume).
+    """
+
+    FIRST_INTERVAL_S = 1.0
+
+    def __init__(self, period_s: float):
+        self.period_s = float(period_s)
+        self._interval = min(self.FIRST_INTERVAL_S, self.period_s)
+        self._progress = (0, 0)  # (updates, applied feedback) at the last checkpoint
+        self._due = -math.inf
+
+    def next_at(self, progress) -> float:
+        """The monotonic time of the next checkpoint (inf: none due, nothing new)."""
+        if not self.period_s or tuple(progress) == self._progress:
+            return math.inf
+        return self._due
+
+    def taken(self, progress, now: float) -> float:
+        self._progress = tuple(progress)
+        self._due = now + self._interval
+        self._interval = min(2 * self._interval, self.period_s)
+        return self.next_at(progress)
 
 
 class _PeriodLosses:
