@@ -147,6 +147,53 @@ def test_a_dead_node_is_named_and_the_rest_are_stopped(tmp_path):
 
 
 @pytest.mark.topics
+def test_a_killed_run_is_resumed_to_its_budget(tmp_path):
+    run_dir = tmp_path / 'run'
+    budget = 900
+    launcher = subprocess.Popen(
+        [LAUNCHER, '--steps', str(budget), '--run-dir', str(run_dir), '--quiet', '--seed', '2'],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        pids = _wait_for_steps(launcher, run_dir, 200)
+        os.kill(pids['tamer_node'], signal.SIGKILL)
+        _, stderr = launcher.communicate(timeout=90)
+    finally:
+        if launcher.poll() is None:
+            launcher.kill()
+    assert 'tamer_node died (killed by SIGKILL)' in stderr
+    first = _read_json(run_dir / 'summary.json')
+    assert first['status'] == 'node_failed' and first['steps'] < budget
+    assert (run_dir / 'checkpoints' / 'checkpoint.pt').exists()  # an early one
+
+    result = subprocess.run([LAUNCHER, '--resume', str(run_dir), '--quiet'],
+                            capture_output=True, text=True, timeout=240)
+    assert result.returncode == 0, result.stderr[-4000:]
+    summary = _read_json(run_dir / 'summary.json')
+    assert summary['status'] == 'completed' and summary['session'] == 2
+    assert summary['steps'] == budget and summary['seed'] == 2
+    assert _read_json(run_dir / 'summary.session1.json')['status'] == 'node_failed'
+    with open(run_dir / 'progress.csv') as progress:
+        rows = list(csv.DictReader(progress))
+    steps = [(int(row['agent_step']), int(row['session'])) for row in rows]
+    # One timeline (a reset repeats a step count: the new episode's first state, no action).
+    assert steps == sorted(steps) and steps[-1] == (budget, 2)
+    # The new env's first step is the state before its first action: the same count of steps.
+    boundary = next(i for i, (_, session) in enumerate(steps) if session == 2)
+    assert steps[boundary][0] == steps[boundary - 1][0] == first['steps']
+    resumed_log = (run_dir / 'logs' / 'tamer_node.session2.log').read_text()
+    assert 'resumed' in resumed_log and 'now session 2' in resumed_log
+    assert 'model version 0' not in resumed_log.split('resumed', 1)[1].splitlines()[0]
+    assert (run_dir / 'logs' / 'tamer_node.log').exists()  # the first session's log is kept
+    seqs = [json.loads(line)['seq'] for line in
+            (run_dir / 'feedback_log.jsonl').read_text().splitlines()
+            if json.loads(line)['kind'] == 'feedback']
+    assert seqs == list(range(1, len(seqs) + 1))
+    again = subprocess.run([LAUNCHER, '--resume', str(run_dir)], capture_output=True,
+                           text=True, timeout=60)
+    assert again.returncode == 2 and 'nothing to resume' in again.stderr
+
+
+@pytest.mark.topics
 def test_ctrl_c_stops_every_node_cleanly(tmp_path):
     run_dir = tmp_path / 'run'
     launcher = _start_long_run(run_dir)

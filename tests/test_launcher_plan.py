@@ -12,7 +12,8 @@ from attention_bringup.plan import (
     build_plan, DEFAULT_STEPS, LaunchOptions, OVERRIDES_FILE, parse_options, REALTIME_RATE_HZ,
     TEACHING_GREEDY_MARGIN)
 from attention_bringup.progress import (
-    ALIVE_STEPS, format_bar, parse_value, percentile, ProgressTracker)
+    ALIVE_STEPS, format_bar, parse_value, ProgressTracker, RECENT_ROWS, RECENT_STAMPS)
+from attention_bringup.report import ProgressWriter, read_rows_for_plot
 from feedback_node.teacher import TRAINERS
 import pytest
 
@@ -269,8 +270,12 @@ def test_tracker_rows_from_status_keep_the_furthest_and_the_latencies():
     assert [r['position'] for r in tracker.rows] == [0, 2, -1]
     assert [r['furthest_position'] for r in tracker.rows] == [0, 2, 2]
     assert tracker.first_step_at == {0: 1, 2: 2}
-    assert tracker.lives_lost == 1 and tracker.episodes == {0, 1}
-    assert tracker.latencies_ms == [3.5, 1.25]  # the first step answered nothing
+    assert tracker.lives_lost == 1 and tracker.episodes == {(1, 0), (1, 1)}
+    assert tracker.latencies_ms.count == 2  # the first step answered nothing
+    assert tracker.latency_ms(50) == pytest.approx(1.25, rel=0.01)
+    assert tracker.latency_ms(100) == pytest.approx(3.5, rel=0.01)
+    assert [r['agent_step'] for r in tracker.take_new_rows()] == [1, 2, 3]
+    assert tracker.take_new_rows() == [] and tracker.row_count == 3
 
 
 def test_tracker_counts_a_position_stood_on_only_when_held_and_alive_a_second_later():
@@ -303,7 +308,7 @@ def test_tracker_ignores_other_rooms_and_repeated_steps():
     tracker = _tracker()
     tracker.on_status(100, _status(1, 150, room=2), 0.1)  # Room 2: not Room 1's positions
     tracker.on_status(100, _status(1, 150, room=2, action_latency_ms=2.0), 0.2)  # sent again
-    assert len(tracker.rows) == 1 and tracker.furthest == -1 and tracker.latencies_ms == []
+    assert len(tracker.rows) == 1 and tracker.furthest == -1 and tracker.latency_ms(50) is None
     tracker.on_status(200, _status(2, 50, finished=True), 0.3)
     assert tracker.finished and len(tracker.rows) == 2
 
@@ -315,10 +320,28 @@ def test_tracker_rate():
     assert tracker.rate() == pytest.approx(2.0)
 
 
-def test_percentile_and_bar():
-    assert percentile([], 50) is None
-    assert percentile(list(range(1, 101)), 99) == 99
-    assert percentile([3, 1, 2], 50) == 2
+def test_the_tracker_stays_bounded_however_long_the_run(tmp_path):
+    tracker = _tracker()
+    writer = ProgressWriter(tmp_path / 'progress.csv')
+    steps = RECENT_ROWS * 3
+    for step in range(1, steps + 1):
+        tracker.on_status(step * 100, _status(step, 150 if step == 4000 else 5, episode=0,
+                                              action_latency_ms=float(step % 100)), step / 100)
+        if step % 500 == 0:
+            writer.write(tracker.take_new_rows())
+    writer.close()
+    assert len(tracker.rows) == RECENT_ROWS and tracker.rows[-1]['agent_step'] == steps
+    assert len(tracker.step_at_stamp) <= RECENT_STAMPS and tracker.first_row['agent_step'] == 1
+    assert tracker.latency_ms(50) == pytest.approx(49, rel=0.02)
+    assert tracker.latency_ms(99) == pytest.approx(98, rel=0.02)
+    with open(tmp_path / 'progress.csv') as file:
+        assert sum(1 for _ in file) == steps + 1  # every row on disk, once
+    thinned = read_rows_for_plot(tmp_path / 'progress.csv', steps, most=100)
+    assert 100 <= len(thinned) <= 103
+    assert 4000 in [row['agent_step'] for row in thinned]  # where the furthest grew
+
+
+def test_bar():
     bar = format_bar(50, 200, 10.0, 49, 3, episode=1, lives=5)
     assert '50/200 steps' in bar and 'ETA 0:15' in bar and 'feedback 49' in bar
     assert 'furthest position 3' in bar and bar.count('#') == 6

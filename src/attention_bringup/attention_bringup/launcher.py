@@ -24,10 +24,12 @@ from attention_bringup import report
 from attention_bringup.gallery import GalleryCollector
 from attention_bringup.graph import NODES
 from attention_bringup.params import ParamsFileError
-from attention_bringup.plan import build_plan, LaunchPlan, OVERRIDES_FILE, parse_options
+from attention_bringup.plan import (
+    build_plan, Continuation, LaunchPlan, OPTIONS_FILE, OVERRIDES_FILE, parse_options,
+    resumed_options, save_options)
 from attention_bringup.processes import (
     cpu_seconds, exit_description, log_tail, NodeGroup, resident_memory_kb)
-from attention_bringup.progress import format_bar, percentile, ProgressTracker
+from attention_bringup.progress import format_bar, ProgressTracker
 from attention_common.isolation import apply_to_this_process, isolated_environ, reserved_domain
 
 STARTUP_TIMEOUT_S = 300.0
@@ -51,14 +53,22 @@ class Launcher:
         self.interrupts = 0
         self.started_wall = time.monotonic()
         self.interactive = (not plan.options.quiet) and err.isatty()
+        self._gallery_steps = {}  # gallery image stamp -> agent step
 
     # -- set-up ---------------------------------------------------------------------------
     def _prepare_run_dir(self) -> None:
         run_dir = self.plan.run_dir
-        if (run_dir / report.SUMMARY_FILE).exists():
-            raise FileExistsError(f'{run_dir} already holds a finished run; choose another '
-                                  '--run-dir')
+        session = self.plan.continuation.session
+        summary = run_dir / report.SUMMARY_FILE
+        if session > 1:  # the earlier session's summary is kept under its own name
+            if summary.exists():
+                summary.replace(run_dir / f'summary.session{session - 1}.json')
+        elif summary.exists() or (run_dir / OPTIONS_FILE).exists():
+            raise FileExistsError(f'{run_dir} already holds a run; continue it with --resume '
+                                  f'{run_dir}, or choose another --run-dir')
         (run_dir / 'logs').mkdir(parents=True, exist_ok=True)
+        if session == 1:
+            save_options(self.plan.options, run_dir)
         (run_dir / OVERRIDES_FILE).write_text(self.plan.overrides_text())
         report.write_params(run_dir / report.PARAMS_FILE, self.plan.effective,
                             self.plan.options_dict(), 'from the parameter files, at start')
@@ -102,6 +112,11 @@ class Launcher:
         rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)
         tracker = ProgressTracker(position_of=critical_position_at,
                                   standing_poses=STANDING_POSES)
+        continuation = self.plan.continuation
+        progress_file = self.plan.run_dir / report.PROGRESS_FILE
+        if continuation.session > 1 and progress_file.exists():
+            tracker.resume_from(report.read_progress_rows(progress_file))
+        tracker.session = continuation.session
         gallery = GalleryCollector()
         monitor = GraphMonitor(tracker, gallery, watch_plain=not self.plan.options.synthetic,
                                context=context)
@@ -110,13 +125,15 @@ class Launcher:
         spinner = threading.Thread(target=spin_until_shutdown,
                                    args=(executor, context, self.err), daemon=True)
         spinner.start()
-        writer = report.ProgressWriter(self.plan.run_dir / report.PROGRESS_FILE)
+        writer = report.ProgressWriter(progress_file, append=continuation.session > 1)
         group = NodeGroup(self._node_environ())
         options = self.plan.options
         trainer = (f'trainer {options.trainer}' + (', human-like' if options.human_like else '')
                    if options.synthetic else 'a person trains')
+        resumed = (f', session {continuation.session} from step {continuation.steps_done}'
+                   if continuation.session > 1 else '')
         self._say(f'Run folder {self.plan.run_dir} (ROS domain {self.domain_id}); '
-                  f'{options.condition}, {trainer}, {options.steps} steps')
+                  f'{options.condition}, {trainer}, {options.steps} steps{resumed}')
         try:
             status, failed = self._start_nodes(group, monitor)
             if status is None:
@@ -135,7 +152,8 @@ class Launcher:
                 self._say('Stopping the nodes (SIGINT)...')
             exit_codes = group.stop(STOP_TIMEOUT_S, escalate=lambda: self.interrupts >= 2)
             with monitor.lock:
-                writer.write_new(tracker.rows)
+                writer.write(tracker.take_new_rows())
+                self._label_gallery(tracker, monitor.gallery)
         finally:
             if group.running():  # only after an error in the launcher itself
                 group.stop(sigint_timeout=10.0)
@@ -219,7 +237,8 @@ class Launcher:
                 return ended
             with monitor.lock:
                 tracker = monitor.tracker
-                writer.write_new(tracker.rows)
+                writer.write(tracker.take_new_rows())
+                self._label_gallery(tracker, monitor.gallery)
                 steps, rate, finished = tracker.steps, tracker.rate(), tracker.finished
                 monitor.gallery.on_schedule(steps, budget)
                 bar = format_bar(steps, budget, rate, tracker.counters.feedback,
@@ -240,6 +259,13 @@ class Launcher:
                 self._show(bar)
                 last_line = now
             time.sleep(0.2)
+
+    def _label_gallery(self, tracker, gallery) -> None:
+        """Note the agent step of each gallery image while the tracker still knows it."""
+        for sample in gallery.samples:
+            step = tracker.step_at_stamp.get(sample.stamp_ns)
+            if step is not None:
+                self._gallery_steps.setdefault(sample.stamp_ns, step)
 
     def _drain(self, monitor, quiet_s: float = 0.5, timeout_s: float = 3.0) -> None:
         """After the last step, let the last feedback and metrics reach the tamer and us."""
@@ -295,7 +321,6 @@ class Launcher:
     def _finish(self, status, failed, group, monitor, exit_codes, rss, cpu, queried) -> int:
         run_dir = self.plan.run_dir
         tracker = monitor.tracker
-        rows = tracker.rows
         unclean = {name: code for name, code in exit_codes.items() if code != 0}
         if status == 'completed' and unclean:
             status = 'unclean_exit'
@@ -313,6 +338,7 @@ class Launcher:
                             for name, value in cpu.items()}
         title = (f'{self.plan.options.condition}, seed {self.plan.seed}, '
                  f'{summary["steps"]} steps')
+        rows = report.read_rows_for_plot(run_dir / report.PROGRESS_FILE, tracker.row_count)
         summary['files']['learning_curve'] = report.plot_learning_curve(
             rows, run_dir / report.LEARNING_CURVE_FILE, title)
         samples = monitor.gallery.samples
@@ -320,7 +346,7 @@ class Launcher:
                               'with_saliency': sum(s.saliency is not None for s in samples)}
         summary['files']['saliency_gallery'] = report.plot_gallery(
             monitor.gallery.samples, run_dir / report.GALLERY_FILE, title,
-            step_of=tracker.step_at_stamp)
+            step_of=self._gallery_steps)
         report.write_json(run_dir / report.SUMMARY_FILE, summary)
         self.out.write(f'Run folder: {run_dir}\n')
         for line in report.summary_lines(summary):
@@ -346,19 +372,19 @@ class Launcher:
 
     def _summary(self, status, failed, exit_codes, exit_text, group, monitor, rss, queried):
         tracker = monitor.tracker
-        rows = tracker.rows
         with monitor.lock:
             counts = dict(monitor.counts)
             first_seen = {topic: round(t, 2) for topic, t in monitor.first_message_wall.items()}
-            latencies = list(tracker.latencies_ms)
             metrics = dict(monitor.metrics)
-        training_s = rows[-1]['wall_time_s'] - rows[0]['wall_time_s'] if len(rows) > 1 else 0.0
+            first, last = tracker.first_row, (tracker.rows[-1] if tracker.rows else None)
+        training_s = (last['wall_time_s'] - first['wall_time_s']
+                      if tracker.row_count > 1 else 0.0)
         steps = tracker.steps
-        first_steps = rows[0]['agent_step'] if rows else 0
+        first_steps = first['agent_step'] if first else 0
         feedback = tracker.counters.feedback
 
         def ms(q):
-            value = percentile(latencies, q)
+            value = tracker.latency_ms(q)
             return None if value is None else round(value, 3)
 
         run_dir = self.plan.run_dir
@@ -370,8 +396,9 @@ class Launcher:
             'seed': self.plan.seed,
             'budget': self.plan.options.steps,
             'steps': steps,
+            'session': self.plan.continuation.session,
             'wall_time_s': round(time.monotonic() - self.started_wall, 2),
-            'startup_s': rows[0]['wall_time_s'] if rows else None,
+            'startup_s': first['wall_time_s'] if first else None,
             'training_time_s': round(training_s, 2),
             'steps_per_s': round((steps - first_steps) / training_s, 2) if training_s else 0.0,
             'episodes': len(tracker.episodes),
@@ -393,7 +420,7 @@ class Launcher:
             'message_counts': counts,
             'first_message_s': first_seen,
             'latency_ms': {'p50': ms(50), 'p99': ms(99), 'max': ms(100),
-                           'n': len(latencies)},
+                           'n': int(tracker.latencies_ms.count)},
             'metrics': metrics,
             'rss_kb': rss,
             'exit_codes': exit_codes,
@@ -414,10 +441,30 @@ class Launcher:
         }
 
 
+def continuation_of(run_dir: Path) -> Continuation:
+    """Where the run in ``run_dir`` stands: the next session, and the steps done so far."""
+    last = None
+    progress = run_dir / report.PROGRESS_FILE
+    if progress.exists():
+        for last in report.read_progress_rows(progress):
+            pass
+    if last is None:
+        sessions = [int(p.stem.split('session')[1]) for p in run_dir.glob('summary.session*.json')]
+        return Continuation(session=max(sessions, default=1) + 1, steps_done=0)
+    return Continuation(session=int(last.get('session') or 1) + 1,
+                        steps_done=int(last['agent_step']))
+
+
 def main(argv: Optional[list] = None) -> int:
     options = parse_options(argv)
     try:
-        plan = build_plan(options, Path(sys.executable).parent, Path.cwd())
+        continuation = None
+        if options.resume is not None:
+            run_dir = Path(options.resume).resolve()
+            options = resumed_options(run_dir, options.quiet)
+            continuation = continuation_of(run_dir)
+        plan = build_plan(options, Path(sys.executable).parent, Path.cwd(),
+                          continuation=continuation)
     except (ParamsFileError, ValueError) as error:
         sys.stderr.write(f'attention_train: {error}\n')
         return 2

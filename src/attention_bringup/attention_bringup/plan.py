@@ -7,8 +7,9 @@ launcher's own overrides last) and the effective parameters of every node.
 """
 
 import argparse
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, fields
 import datetime
+import json
 from pathlib import Path
 from typing import Dict, List, Optional, Sequence
 
@@ -26,6 +27,8 @@ REALTIME_RATE_HZ = 15.0
 """env_node ``rate_hz`` for ``--realtime``: with frameskip 4, exactly the Atari's 60 Hz."""
 
 OVERRIDES_FILE = 'launcher_overrides.yaml'
+OPTIONS_FILE = 'launch_options.json'
+"""The options a run was started with (``--resume`` continues with them)."""
 
 TEACHING_GREEDY_MARGIN = 0.1
 """tamer_node ``greedy_margin`` with ``--trainer teacher`` (not with ``--thesis-learner``): H
@@ -69,6 +72,8 @@ class LaunchOptions:
     wrong (``feedback_node.human_like.HUMAN_LIKE_SETTING``), credited by the tamer's window."""
     thesis_learner: bool = False
     """Keep the thesis's learner with the teacher (no ``greedy_margin``)."""
+    resume: Optional[str] = None
+    """A run folder whose nodes were killed: continue it with its own options."""
 
 
 def positive_int(text: str) -> int:
@@ -115,11 +120,42 @@ def argument_parser() -> argparse.ArgumentParser:
                         help="with the teacher, keep the thesis's greedy policy (argmax, ties "
                              'to the lowest action) instead of greedy_margin '
                              f'{TEACHING_GREEDY_MARGIN:g}')
+    parser.add_argument('--resume', metavar='RUN_DIR', default=None,
+                        help='continue a run whose nodes were killed (or that was stopped), with '
+                             'the options it was started with, up to its budget: the learner '
+                             'from its checkpoint and feedback log, a fresh env; other options '
+                             'but --quiet are taken from the run folder')
     return parser
 
 
 def parse_options(argv: Optional[Sequence[str]] = None) -> LaunchOptions:
     return LaunchOptions(**vars(argument_parser().parse_args(argv)))
+
+
+def save_options(options: LaunchOptions, run_dir: Path) -> None:
+    """Write the options a run starts with into its folder (``OPTIONS_FILE``)."""
+    (Path(run_dir) / OPTIONS_FILE).write_text(json.dumps(asdict(options), indent=2) + '\n')
+
+
+def resumed_options(run_dir: Path, quiet: bool) -> LaunchOptions:
+    """The options of the run in ``run_dir``, to continue it; ValueError if there is none."""
+    path = Path(run_dir) / OPTIONS_FILE
+    if not path.exists():
+        raise ValueError(f'{run_dir} is not a run folder of attention_train (no {OPTIONS_FILE})')
+    saved = json.loads(path.read_text())
+    known = {f.name for f in fields(LaunchOptions)}
+    options = LaunchOptions(**{k: v for k, v in saved.items() if k in known})
+    options.run_dir, options.resume, options.quiet = str(Path(run_dir).resolve()), str(
+        run_dir), quiet
+    return options
+
+
+@dataclass
+class Continuation:
+    """Where a resumed run stands: its session (1 = the first start) and the steps done."""
+
+    session: int = 1
+    steps_done: int = 0
 
 
 @dataclass
@@ -145,6 +181,7 @@ class LaunchPlan:
     effective: Dict[str, NodeParams]
     """Per node: the merged parameters of all files (what the files set, not the defaults)."""
     commands: List[NodeCommand]
+    continuation: Continuation = field(default_factory=Continuation)
 
     def overrides_text(self) -> str:
         return dump_params(self.overrides, header='Set by attention_train from its options.')
@@ -154,11 +191,15 @@ class LaunchPlan:
 
 
 def launcher_overrides(options: LaunchOptions, seed: int, run_dir: Path,
-                       files_params: GraphParams) -> GraphParams:
+                       files_params: GraphParams,
+                       continuation: Optional[Continuation] = None) -> GraphParams:
     """Return the parameters the launcher's options fix, one section per node."""
+    continuation = continuation or Continuation()
     overrides: GraphParams = {node: {} for node in NODES}
-    overrides['env_node']['max_steps'] = int(options.steps)
+    overrides['env_node']['max_steps'] = int(options.steps) - continuation.steps_done
     overrides['tamer_node']['run_dir'] = str(run_dir)
+    if continuation.session > 1:
+        overrides['tamer_node']['resume'] = True
     if options.seed is not None:
         for node in NODES:
             if node == 'env_node' or 'seed' in node_params(files_params, node):
@@ -184,8 +225,18 @@ def default_run_dir(cwd: Path, condition: str, seed: int, now: datetime.datetime
 
 
 def build_plan(options: LaunchOptions, bin_dir: Path, cwd: Path,
-               now: Optional[datetime.datetime] = None) -> LaunchPlan:
-    """Decide the run; raise ``ParamsFileError`` / ``ValueError`` for bad files or names."""
+               now: Optional[datetime.datetime] = None,
+               continuation: Optional[Continuation] = None) -> LaunchPlan:
+    """
+    Decide the run; raise ``ParamsFileError`` / ``ValueError`` for bad files or names.
+
+    ``continuation``: a resumed run's session and steps done (the env gets the rest of the
+    budget, the tamer ``resume``, and the node logs of this session names of their own).
+    """
+    continuation = continuation or Continuation()
+    if continuation.steps_done >= options.steps:
+        raise ValueError(f'the run has done its {options.steps} steps already: nothing to '
+                         'resume')
     files = base_params_files(options.condition)
     files += [(cwd / path).resolve() for path in options.params_files]
     files_params = merge_params(load_params_file(path) for path in files)
@@ -196,7 +247,7 @@ def build_plan(options: LaunchOptions, bin_dir: Path, cwd: Path,
         run_dir = (cwd / options.run_dir).resolve()
     else:
         run_dir = default_run_dir(cwd, options.condition, seed, now or datetime.datetime.now())
-    overrides = launcher_overrides(options, seed, run_dir, files_params)
+    overrides = launcher_overrides(options, seed, run_dir, files_params, continuation)
     merged = merge_params([files_params, overrides])
     effective = {node: node_params(merged, node) for node in NODES}
     all_files = files + [run_dir / OVERRIDES_FILE]
@@ -205,6 +256,8 @@ def build_plan(options: LaunchOptions, bin_dir: Path, cwd: Path,
         argv = [str(bin_dir / node), '--ros-args']
         for path in all_files:
             argv += ['--params-file', str(path)]
-        commands.append(NodeCommand(node, argv, run_dir / 'logs' / f'{node}.log'))
+        suffix = f'.session{continuation.session}' if continuation.session > 1 else ''
+        commands.append(NodeCommand(node, argv, run_dir / 'logs' / f'{node}{suffix}.log'))
     return LaunchPlan(options=options, run_dir=run_dir, seed=seed, params_files=all_files,
-                      overrides=overrides, effective=effective, commands=commands)
+                      overrides=overrides, effective=effective, commands=commands,
+                      continuation=continuation)

@@ -4,17 +4,24 @@ Training progress as the launcher sees it, from plain values (no rclpy).
 ``ProgressTracker`` turns each step's ``env_status`` into one row per agent step (for
 ``progress.csv`` and the learning curve), keeping the furthest critical position reached so far
 and the closed-loop latency env_node measured. ``format_bar`` draws the terminal line.
+
+Its memory is bounded however long the run: rows go to the caller (``take_new_rows``, streamed
+to ``progress.csv``), only the recent ones stay, and latencies go into a DDSketch (quantiles
+within 1 %).
 """
 
+import collections
 from dataclasses import dataclass, field
 import math
-from typing import Callable, Dict, List, Mapping, Optional
+from typing import Callable, Deque, Dict, List, Mapping, Optional
+
+from ddsketch import DDSketch
 
 PROGRESS_COLUMNS = (
     'agent_step', 'sim_time_s', 'wall_time_s', 'episode', 'episode_step', 'lives', 'has_key',
     'reward', 'episode_return', 'x', 'y', 'room', 'position', 'furthest_position',
     'feedback_count', 'feedback_sum', 'utterance_count', 'saliency_count', 'pose',
-    'action', 'furthest_stood',
+    'action', 'furthest_stood', 'life_lost', 'session',
 )
 
 ALIVE_STEPS = 15
@@ -22,6 +29,12 @@ ALIVE_STEPS = 15
 of simulation time at frameskip 4)."""
 
 START_ROOM = 1  # RAM room number of Room 1; positions elsewhere are not Room 1's coordinates.
+RECENT_ROWS = 2000
+"""Rows the tracker keeps (for the step rate and "now"); all rows go to progress.csv."""
+RECENT_STAMPS = 4096
+"""Steps whose stamp -> agent step the tracker keeps (to label images taken meanwhile)."""
+LATENCY_ACCURACY = 0.01
+"""Relative accuracy of the latency quantiles."""
 
 
 def parse_value(text: str):
@@ -60,17 +73,22 @@ class ProgressTracker:
     """(x, y) in RAM coordinates -> critical position index, -1 in between."""
     start_room: int = START_ROOM
     counters: Counters = field(default_factory=Counters)
-    rows: List[dict] = field(default_factory=list)
+    rows: Deque[dict] = field(default_factory=lambda: collections.deque(maxlen=RECENT_ROWS))
+    """The newest rows (all of them went to ``take_new_rows``)."""
+    row_count: int = 0
+    first_row: Optional[dict] = None
     furthest: int = -1
     first_step_at: Dict[int, int] = field(default_factory=dict)
     keys: int = 0
     lives_lost: int = 0
     episodes: set = field(default_factory=set)
-    step_at_stamp: Dict[int, int] = field(default_factory=dict)
+    step_at_stamp: 'collections.OrderedDict[int, int]' = field(
+        default_factory=collections.OrderedDict)
+    """stamp -> agent step of the newest ``RECENT_STAMPS`` steps."""
     latest: dict = field(default_factory=dict)
     finished: bool = False
-    latencies_ms: List[float] = field(default_factory=list)
-    """env_node's ``action_latency_ms`` of every step an answer led to."""
+    latencies_ms: DDSketch = field(default_factory=lambda: DDSketch(LATENCY_ACCURACY))
+    """env_node's ``action_latency_ms`` of every step an answer led to (a sketch)."""
     first_key_step: Optional[int] = None
     """Agent step at which the key was first taken (None: never)."""
     standing_poses: frozenset = frozenset()
@@ -80,9 +98,14 @@ class ProgressTracker:
     """Furthest critical position stood on: within alpha, held by something (a standing pose),
     alive ``ALIVE_STEPS`` steps later. ``furthest`` counts mere passing within alpha."""
     first_step_stood_at: Dict[int, int] = field(default_factory=dict)
+    session: int = 1
+    """The launcher's session of the run (``attention_train --resume`` starts the next)."""
+    step_offset: int = 0
+    """Agent steps of the earlier sessions: a resumed env counts from 1 again."""
     _had_key: bool = False
     _last_stamp: int = -1
     _candidates: List[tuple] = field(default_factory=list)
+    _new_rows: List[dict] = field(default_factory=list)
 
     def on_status(self, stamp_ns: int, values: Mapping[str, object], wall_s: float) -> None:
         """Take one ``env_status`` (parsed key-values); a step seen twice counts once."""
@@ -93,13 +116,24 @@ class ProgressTracker:
         self._last_stamp = stamp_ns
         latency = values.get('action_latency_ms')
         if isinstance(latency, (int, float)) and latency >= 0:
-            self.latencies_ms.append(float(latency))
+            self.latencies_ms.add(float(latency))
         self._add_row(stamp_ns, values, wall_s)
+
+    def take_new_rows(self) -> List[dict]:
+        """Return the rows added since the last call (each row is handed out once)."""
+        rows, self._new_rows = self._new_rows, []
+        return rows
+
+    def latency_ms(self, q: float) -> Optional[float]:
+        """The q-th percentile (0..100) of the answered steps' latency; None before any."""
+        if not self.latencies_ms.count:
+            return None
+        return float(self.latencies_ms.get_quantile_value(q / 100.0))
 
     def _add_row(self, stamp_ns: int, values: Mapping[str, object], wall_s: float) -> None:
         x, y, room = (values.get(key, 0) for key in ('x', 'y', 'room'))
         position = self.position_of(x, y) if int(room) == self.start_room else -1
-        step = int(values.get('agent_step', len(self.rows)))
+        step = self.step_offset + int(values.get('agent_step', self.row_count))
         if position > self.furthest:
             self.furthest = position
         if position >= 0 and position not in self.first_step_at:
@@ -114,8 +148,10 @@ class ProgressTracker:
             self.lives_lost += 1
         self._stand(position, step, values)
         if 'episode' in values:
-            self.episodes.add(values['episode'])
+            self.episodes.add((self.session, values['episode']))
         self.step_at_stamp[stamp_ns] = step
+        while len(self.step_at_stamp) > RECENT_STAMPS:
+            self.step_at_stamp.popitem(last=False)
         row = {
             'agent_step': step,
             'sim_time_s': stamp_ns / 1e9,
@@ -136,9 +172,51 @@ class ProgressTracker:
             'pose': values.get('pose', ''),
             'action': values.get('action', ''),
             'furthest_stood': self.furthest_stood,
+            'life_lost': int(bool(values.get('life_lost'))),
+            'session': self.session,
         }
         self.rows.append(row)
+        self._new_rows.append(row)
+        self.row_count += 1
+        if self.first_row is None:
+            self.first_row = row
         self.latest = dict(values)
+
+    def resume_from(self, rows) -> None:
+        """
+        Take up a run from the rows of its ``progress.csv`` (parsed): the furthest positions,
+        keys, lives and counts go on, and the rows to come are the next session's. (Of the
+        earlier sessions' positions stood on, the first steps of each new furthest are kept.)
+        """
+        had_key, last = False, None
+        for row in rows:
+            step, session = int(row['agent_step']), int(row.get('session') or 1)
+            position = int(row['position'])
+            self.furthest = max(self.furthest, position)
+            if position >= 0:
+                self.first_step_at.setdefault(position, step)
+            has_key = bool(row['has_key'])
+            if has_key and not had_key:
+                self.keys += 1
+                if self.first_key_step is None:
+                    self.first_key_step = step
+            had_key = has_key
+            self.lives_lost += int(row.get('life_lost') or 0)
+            self.episodes.add((session, row['episode']))
+            stood = int(row['furthest_stood'])
+            if stood > self.furthest_stood:  # confirmed ALIVE_STEPS after it was stood on
+                self.first_step_stood_at.setdefault(stood, step - ALIVE_STEPS)
+                self.furthest_stood = stood
+            self.row_count += 1
+            if self.first_row is None:
+                self.first_row = row
+            self.rows.append(row)
+            last = row
+        if last is not None:
+            self.step_offset = int(last['agent_step'])
+            self.session = int(last.get('session') or 1) + 1
+            self.counters = Counters(int(last['feedback_count']), float(last['feedback_sum']),
+                                     int(last['utterance_count']), int(last['saliency_count']))
 
     def _stand(self, position: int, step: int, values: Mapping[str, object]) -> None:
         """Confirm the candidates that stayed alive; a life lost (or a new episode) voids all."""
@@ -166,15 +244,6 @@ class ProgressTracker:
         elapsed = last['wall_time_s'] - first['wall_time_s']
         steps = last['agent_step'] - first['agent_step']
         return steps / elapsed if elapsed > 0 else 0.0
-
-
-def percentile(values, q: float) -> Optional[float]:
-    """Return the nearest-rank q-th percentile, q in 0..100, of values; None if empty."""
-    ordered = sorted(values)
-    if not ordered:
-        return None
-    rank = max(1, math.ceil(q / 100.0 * len(ordered)))
-    return ordered[min(rank, len(ordered)) - 1]
 
 
 def format_duration(seconds: float) -> str:

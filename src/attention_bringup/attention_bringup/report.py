@@ -5,11 +5,11 @@ import json
 import math
 from pathlib import Path
 import textwrap
-from typing import Dict, List, Mapping, Optional, Sequence
+from typing import Dict, Iterator, List, Mapping, Optional, Sequence
 
 from attention_bringup.gallery import GallerySample
 from attention_bringup.params import dump_params
-from attention_bringup.progress import format_duration, PROGRESS_COLUMNS
+from attention_bringup.progress import format_duration, parse_value, PROGRESS_COLUMNS
 
 SUMMARY_FILE = 'summary.json'
 PARAMS_FILE = 'params.yaml'
@@ -17,22 +17,29 @@ PROGRESS_FILE = 'progress.csv'
 PIDS_FILE = 'pids.json'
 LEARNING_CURVE_FILE = 'learning_curve.png'
 GALLERY_FILE = 'saliency_gallery.png'
+PLOT_ROWS = 20_000
+"""About as many rows of progress.csv as the learning curve draws (a long run is thinned)."""
+PLOT_COLUMNS = ('agent_step', 'position', 'furthest_position', 'feedback_count', 'feedback_sum')
 
 
 class ProgressWriter:
     """Appends rows to progress.csv as they come, so a crash keeps what was seen."""
 
-    def __init__(self, path: Path):
-        self._file = open(path, 'w', newline='')
+    def __init__(self, path: Path, append: bool = False):
+        """``append``: go on with the file of an earlier session (its header is kept)."""
+        append = append and Path(path).exists() and Path(path).stat().st_size > 0
+        self._file = open(path, 'a' if append else 'w', newline='')
         self._writer = csv.DictWriter(self._file, fieldnames=PROGRESS_COLUMNS)
-        self._writer.writeheader()
+        if not append:
+            self._writer.writeheader()
         self.written = 0
 
-    def write_new(self, rows: Sequence[dict]) -> None:
-        if len(rows) == self.written:
+    def write(self, rows: Sequence[dict]) -> None:
+        """Append ``rows`` (new ones only) and flush."""
+        if not rows:
             return
-        self._writer.writerows(rows[self.written:])
-        self.written = len(rows)
+        self._writer.writerows(rows)
+        self.written += len(rows)
         self._file.flush()
 
     def close(self) -> None:
@@ -95,6 +102,39 @@ def summary_lines(summary: Mapping) -> List[str]:
         f'{counts.get("saliency", 0)}; {updates_text}{loss_text}',
         f'{summary.get("status", "?")}: {summary.get("exit_text", "")}',
     ]
+
+
+def read_progress_rows(path: Path) -> Iterator[dict]:
+    """Yield the rows of ``progress.csv`` with their values parsed (streamed)."""
+    with open(path, newline='') as file:
+        for row in csv.DictReader(file):
+            yield {key: parse_value(value or '') for key, value in row.items()}
+
+
+def read_rows_for_plot(path: Path, count: int, most: int = PLOT_ROWS) -> List[dict]:
+    """
+    Read ``progress.csv`` back for the learning curve: every row of a short run; of a long one
+    (``count`` rows) every k-th and each row where the furthest position grew, at most about
+    ``most`` + the growths, streamed (a million-step run is never held whole).
+    """
+    if not Path(path).exists():
+        return []
+    stride = max(1, math.ceil(count / most))
+    rows, furthest = [], None
+    with open(path, newline='') as file:
+        for index, row in enumerate(csv.DictReader(file)):
+            grew = row['furthest_position'] != furthest
+            furthest = row['furthest_position']
+            if index % stride == 0 or grew:
+                rows.append({key: _number(row[key]) for key in PLOT_COLUMNS})
+    return rows
+
+
+def _number(text: str) -> float:
+    try:
+        return float(text)
+    except ValueError:
+        return math.nan
 
 
 def plot_learning_curve(rows: Sequence[dict], path: Path, title: str) -> bool:
