@@ -281,3 +281,29 @@ def test_the_teacher_survives_bad_env_status_among_a_real_envs(probe, start_node
     assert judged.wait_count(before + 2, REPLY_S), trainer.log_text()[-2000:]
     assert trainer.alive() and env.alive()
     assert trainer.stop(signal.SIGINT) == 0 and env.stop(signal.SIGINT) == 0
+
+
+def resident_mb(pid):
+    with open(f'/proc/{pid}/status') as status:
+        for line in status:
+            if line.startswith('VmRSS:'):
+                return int(line.split()[1]) / 1024
+    raise AssertionError('no VmRSS')
+
+
+@pytest.mark.parametrize('node_name', ['saliency_node', 'tamer_node'])
+def test_a_huge_frame_leaves_no_lasting_memory(probe, start_node, tmp_path, node_name):
+    """A 48 MB frame is dropped, and the node does not stay 46 MB larger (dds_memory)."""
+    params = {'run_dir': str(tmp_path / 'run')} if node_name == 'tamer_node' else {}
+    node = start_node(node_name, params)
+    observation = probe.publisher(Image, topics.OBSERVATION, qos.FRAMES)
+    assert probe.wait_for_subscribers(observation, timeout=STARTUP_S)
+    observation.publish(image(frame(), T0))  # a good one first: buffers of the usual size
+    assert node.wait_for_log('ready', STARTUP_S)
+    before = resident_mb(node.process.pid)
+    for i in range(2):
+        observation.publish(image(np.zeros((4000, 4000, 3), np.uint8), T0 + i + 1))
+    assert wait_until(lambda: node.log_text().count('size 4000x4000') == 2, REPLY_S)
+    grown = resident_mb(node.process.pid) - before
+    assert grown < 16, f'{node_name} grew {grown:.1f} MB'
+    assert node.stop(signal.SIGINT) == 0

@@ -139,3 +139,15 @@ def test_stray_stamps_that_do_not_continue_each_other_never_restart():
     for stray in (0, 2**31 * NS_PER_S, 5 * NS_PER_S, 10**6 * NS_PER_S, 1 * NS_PER_S):
         assert guard.check(stray) == 'implausible'
     assert guard.newest == 500 * NS_PER_S and guard.restarts == 0
+
+
+def test_the_dds_profile_is_chosen_unless_the_user_configures_fast_dds():
+    from attention_common.dds_memory import PROFILE, use_freed_payloads
+    environ = {}
+    assert use_freed_payloads(environ) and PROFILE.exists()
+    assert environ == {'FASTRTPS_DEFAULT_PROFILES_FILE': str(PROFILE),
+                       'RMW_FASTRTPS_USE_QOS_FROM_XML': '1'}
+    for own in ({'FASTRTPS_DEFAULT_PROFILES_FILE': '/mine.xml'},
+                {'RMW_FASTRTPS_USE_QOS_FROM_XML': '0'}):
+        untouched = dict(own)
+        assert not use_freed_payloads(untouched) and untouched == own

@@ -30,6 +30,7 @@ from attention_bringup.plan import (
 from attention_bringup.processes import (
     cpu_seconds, exit_description, log_tail, NodeGroup, resident_memory_kb)
 from attention_bringup.progress import format_bar, ProgressTracker
+from attention_common.dds_memory import use_freed_payloads
 from attention_common.isolation import apply_to_this_process, isolated_environ, reserved_domain
 
 STARTUP_TIMEOUT_S = 300.0
@@ -108,6 +109,7 @@ class Launcher:
         from feedback_node.critical_positions import critical_position_at
 
         apply_to_this_process(self.domain_id)
+        use_freed_payloads()
         context = Context()
         rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)
         tracker = ProgressTracker(position_of=critical_position_at,

@@ -10,6 +10,7 @@ is 1.
 import sys
 from typing import Callable, Optional
 
+from attention_common.dds_memory import use_freed_payloads
 import rclpy
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 
@@ -21,6 +22,7 @@ class StartupError(RuntimeError):
 def run_node(node_factory: Callable[[], object], args=None,
              executor_factory: Optional[Callable[[], object]] = None) -> int:
     """Run one node until shutdown; return the process exit code."""
+    use_freed_payloads()  # before rclpy.init: Fast DDS reads its profile then
     rclpy.init(args=args)
     node = None
     try:
