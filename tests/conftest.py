@@ -7,6 +7,7 @@ starts, in this process or as a child process, inherits the isolation.
 
 import os
 
+from attention_common.dds_memory import use_freed_payloads
 from attention_common.isolation import isolated_environ, reserved_domain
 import pytest
 
@@ -14,6 +15,7 @@ _domain_reservation = reserved_domain()
 TEST_DOMAIN_ID = _domain_reservation.__enter__()
 os.environ.update(isolated_environ(TEST_DOMAIN_ID, base={}))
 os.environ.pop('ROS_LOCALHOST_ONLY', None)
+use_freed_payloads()  # the probe talks DDS as the graph's nodes do (attention_common.dds_memory)
 
 
 def pytest_report_header(config):

@@ -69,7 +69,7 @@ def wait_metrics(log, predicate, timeout=REPLY_S):
 
 
 def counts_line(node, pattern):
-    """The numbers in the node's newest status line that matches ``pattern`` (a regex)."""
+    """Return the node's newest status line that matches ``pattern`` (a regex)."""
     found = re.findall(pattern, node.log_text())
     return found[-1] if found else None
 
@@ -158,8 +158,8 @@ def test_saliency_node_survives_bad_input_on_all_three_topics(probe, start_node)
                    (stamped_utterance('   ', T0), 'empty or only whitespace'),
                    (stamped_utterance('k' * 3000, T0), '3000 characters'),
                    (stamped_utterance('\U0001F511', T0), 'no ASCII words'),
-                   (stamped_utterance('Get the key', FAR), 'utterance_stamped \'Get the key\' '
-                                                            'dropped: its stamp')]
+                   (stamped_utterance('Get the key', FAR),
+                    "utterance_stamped 'Get the key' dropped: its stamp")]
     for msg, _ in stamped_bad:
         stamped.publish(msg)
     for _, line in plain + stamped_bad:
@@ -212,7 +212,8 @@ def test_feedback_node_survives_bad_positions_and_a_persons_bad_input(probe, sta
     assert trainer.wait_for_log('a person trains', REPLY_S)
     for value in (math.nan, math.inf, -math.inf, 5.0, -2.0, 1e30):
         feedback.publish(Float32(data=value))
-    for text in ('', '   ', 'caf\u00e9', 'x' * 100_000, 'bell\x07', 'x' * (MAX_UTTERANCE_CHARS + 1)):
+    for text in ('', '   ', 'caf\u00e9', 'x' * 100_000, 'bell\x07',
+                 'x' * (MAX_UTTERANCE_CHARS + 1)):
         utterance.publish(String(data=text))
     feedback.publish(Float32(data=1.0))
     utterance.publish(String(data='Move left.'))
@@ -306,4 +307,5 @@ def test_a_huge_frame_leaves_no_lasting_memory(probe, start_node, tmp_path, node
     assert wait_until(lambda: node.log_text().count('size 4000x4000') == 2, REPLY_S)
     grown = resident_mb(node.process.pid) - before
     assert grown < 16, f'{node_name} grew {grown:.1f} MB'
+    assert 'XMLPARSER' not in node.log_text()  # the profile loaded whole
     assert node.stop(signal.SIGINT) == 0

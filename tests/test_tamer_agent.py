@@ -483,14 +483,14 @@ def test_periodic_checkpoints_are_atomic_and_prune_the_journal(tmp_path):
     run = tmp_path / 'run'
     agent = make_agent(run, checkpoint_period_s=0.2)
     try:
-        for round in range(1, 4):
-            feed(agent, 10, first=10 * (round - 1))
-            assert processed(agent, 10 * round)
+        for rounds in range(1, 4):
+            feed(agent, 10, first=10 * (rounds - 1))
+            assert processed(agent, 10 * rounds)
 
             def has_everything():
                 # Each load sees a whole file: the old checkpoint or the new one, never a mix.
                 checkpoint = load_checkpoint(run)
-                return checkpoint is not None and checkpoint['applied_seq'] == 10 * round
+                return checkpoint is not None and checkpoint['applied_seq'] == 10 * rounds
 
             assert wait_until(has_everything, 20, interval=0.05)
         assert agent.worker.stats()['checkpoint/count'] >= 3

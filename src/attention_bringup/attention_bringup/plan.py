@@ -138,7 +138,7 @@ def save_options(options: LaunchOptions, run_dir: Path) -> None:
 
 
 def resumed_options(run_dir: Path, quiet: bool) -> LaunchOptions:
-    """The options of the run in ``run_dir``, to continue it; ValueError if there is none."""
+    """Return the options of the run in ``run_dir``, to continue it (ValueError: none)."""
     path = Path(run_dir) / OPTIONS_FILE
     if not path.exists():
         raise ValueError(f'{run_dir} is not a run folder of attention_train (no {OPTIONS_FILE})')

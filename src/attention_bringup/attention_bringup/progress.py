@@ -12,7 +12,6 @@ within 1 %).
 
 import collections
 from dataclasses import dataclass, field
-import math
 from typing import Callable, Deque, Dict, List, Mapping, Optional
 
 from ddsketch import DDSketch
@@ -125,7 +124,7 @@ class ProgressTracker:
         return rows
 
     def latency_ms(self, q: float) -> Optional[float]:
-        """The q-th percentile (0..100) of the answered steps' latency; None before any."""
+        """Return the q-th percentile (0..100) of the steps' latency; None before any."""
         if not self.latencies_ms.count:
             return None
         return float(self.latencies_ms.get_quantile_value(q / 100.0))
@@ -184,9 +183,11 @@ class ProgressTracker:
 
     def resume_from(self, rows) -> None:
         """
-        Take up a run from the rows of its ``progress.csv`` (parsed): the furthest positions,
-        keys, lives and counts go on, and the rows to come are the next session's. (Of the
-        earlier sessions' positions stood on, the first steps of each new furthest are kept.)
+        Take up a run from the rows of its ``progress.csv`` (parsed).
+
+        The furthest positions, keys, lives and counts go on, and the rows to come are the
+        next session's. (Of the earlier sessions' positions stood on, the first steps of each
+        new furthest are kept.)
         """
         had_key, last = False, None
         for row in rows:

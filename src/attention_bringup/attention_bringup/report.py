@@ -113,9 +113,10 @@ def read_progress_rows(path: Path) -> Iterator[dict]:
 
 def read_rows_for_plot(path: Path, count: int, most: int = PLOT_ROWS) -> List[dict]:
     """
-    Read ``progress.csv`` back for the learning curve: every row of a short run; of a long one
-    (``count`` rows) every k-th and each row where the furthest position grew, at most about
-    ``most`` + the growths, streamed (a million-step run is never held whole).
+    Read ``progress.csv`` back for the learning curve, streamed.
+
+    Every row of a short run; of a long one (``count`` rows) every k-th and each row where the
+    furthest position grew, about ``most`` + the growths (a million-step run is never held).
     """
     if not Path(path).exists():
         return []

@@ -100,7 +100,8 @@ class SaliencyNode(Node):
         changes = {p.name: p.value for p in params}
         for name in ('templates_manifest', 'status_period'):
             if name in changes:
-                return SetParametersResult(successful=False, reason=f'{name} is read at start only')
+                return SetParametersResult(successful=False,
+                                           reason=f'{name} is read at start only')
         try:
             settings = Settings.from_values(self._values(changes))
         except ValueError as error:

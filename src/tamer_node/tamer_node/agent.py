@@ -180,7 +180,7 @@ class TamerAgent:
 
     @property
     def session(self) -> int:
-        """The run's session (see persistence.py): 1, and one more per resume or env restart."""
+        """Return the run's session number (persistence.py): 1, then one more per resume."""
         return self.history.session
 
     def _set_session(self, session: int) -> None:

@@ -7,8 +7,9 @@ Everything a run writes to <run_dir>, so that a crash loses nothing a person sai
 - ``steps/segment-NNNNNN.bin``: a journal of the steps (preprocessed images, chosen actions),
   written a few records at a time. A step is known by its session and stamp: the env's stamps
   start over when it is started again (a resume), and each tamer_node start, or restart of the
-  observation stamps, begins a new session of the run, so steps of two sessions never mix. It holds the buffer's images (so a checkpoint need not copy
-  up to 170 MB of them every time, which would stall the process) and the steps that feedback
+  observation stamps, begins a new session of the run, so steps of two sessions never mix. It
+  holds the buffer's images (so a checkpoint need not copy up to 170 MB of them every time,
+  which would stall the process) and the steps that feedback
   logged after the last checkpoint refers to (replayed on resume). A new segment starts at every
   checkpoint; a segment is deleted once every step in it is older (session, then stamp) than
   anything the newest checkpoint still needs.

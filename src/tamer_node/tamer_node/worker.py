@@ -538,9 +538,10 @@ class LearnerWorker(threading.Thread):
 
 class CheckpointClock:
     """
-    When the learner checkpoints: once it has learned something (an update, or feedback used),
-    then 1, 2, 4, ... s apart, at most ``period_s`` (0: only at exit), and only when it has
-    learned more since the last one.
+    Decide when the learner checkpoints.
+
+    Once it has learned something (an update, or feedback used), then 1, 2, 4, ... s apart, at
+    most ``period_s`` (0: only at exit), and only when it has learned more since the last one.
 
     So a kill -9 costs at most the minibatch updates of the last half of a short run, or of
     ``period_s`` in a long one; feedback never (it is logged first and replayed on resume).
@@ -555,7 +556,7 @@ class CheckpointClock:
         self._due = -math.inf
 
     def next_at(self, progress) -> float:
-        """The monotonic time of the next checkpoint (inf: none due, nothing new)."""
+        """Return the monotonic time of the next checkpoint (inf: none due, nothing new)."""
         if not self.period_s or tuple(progress) == self._progress:
             return math.inf
         return self._due
