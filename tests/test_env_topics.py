@@ -10,7 +10,10 @@ from attention_common.stamps import frames_to_ns, stamp_to_ns
 from diagnostic_msgs.msg import DiagnosticArray
 from env_node.status import NO_LATENCY, parse_status
 from geometry_msgs.msg import PointStamped
+from harness import wait_until
 import pytest
+from rclpy.parameter import Parameter
+from rclpy.parameter_client import AsyncParameterClient
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Image, Joy
 
@@ -209,6 +212,44 @@ def test_real_time_steps_with_the_latest_action(start_node, probe):
     assert env.wait_for_log('bad action', REPLY_S) and env.alive()
     count = len(learner.observations.snapshot())
     assert learner.observations.wait_count(count + 2, REPLY_S)  # still stepping
+    assert env.stop(signal.SIGINT) == 0
+
+
+def set_paused(probe, value):
+    client = AsyncParameterClient(probe.node, 'env_node')
+    assert client.wait_for_services(timeout_sec=10.0)
+    future = client.set_parameters([Parameter('paused', value=value)])
+    assert wait_until(future.done, 10.0)
+    return future.result().results[0]
+
+
+def test_pause_and_resume_in_real_time_and_lockstep(start_node, probe):
+    learner = Learner(probe)
+    env = start_node('env_node', {'warmup_steps': 0, 'rate_hz': 30})
+    assert learner.observations.wait_count(3, STARTUP_S)
+    assert set_paused(probe, True).successful
+    assert env.wait_for_log('paused', REPLY_S)
+    count = len(learner.observations.snapshot())
+    assert not learner.observations.wait_count(count + 2, 1.0)  # at most one in flight
+    paused_at = len(learner.observations.snapshot())
+    assert not set_paused(probe, 'yes').successful  # only a boolean
+    assert set_paused(probe, False).successful
+    assert learner.observations.wait_count(paused_at + 3, REPLY_S)  # stepping again
+    assert env.stop(signal.SIGINT) == 0
+
+    learner = Learner(probe)
+    env = start_node('env_node', {'warmup_steps': 0, 'action_timeout': 30.0},
+                     name='env_lockstep')
+    observation = learner.step(learner.connect(), RIGHT)
+    assert set_paused(probe, True).successful
+    pending = stamp_to_ns(observation.header.stamp)
+    learner.send(pending, RIGHT)  # the answer comes while paused: it waits
+    assert not learner.observations.wait_for(
+        lambda ms: stamp_to_ns(ms[-1].header.stamp) > pending, 1.0)
+    assert set_paused(probe, False).successful
+    following = learner.next_observation(pending)  # applied on resume, once
+    status = learner.status_at(stamp_to_ns(following.header.stamp))
+    assert status['agent_step'] == 2 and status['dropped_actions'] == 0
     assert env.stop(signal.SIGINT) == 0
 
 

@@ -1,6 +1,7 @@
 """Unit tests of the launcher's pure parts: parameter files, conditions, plans, progress."""
 
 import ast
+import json
 import datetime
 from pathlib import Path
 
@@ -388,3 +389,32 @@ def test_gallery_falls_back_to_the_frame_alone():
         gallery.on_image('observation', stamp, b'o%d' % stamp)
     assert gallery.samples[0].observation == b'o7' and gallery.samples[0].saliency is None
     assert gallery.full
+
+
+def test_the_domain_is_the_users_when_chosen():
+    from attention_bringup.plan import chosen_domain
+    assert chosen_domain(parse_options([]), {}) is None
+    assert chosen_domain(parse_options([]), {'ROS_DOMAIN_ID': '42'}) == 42
+    assert chosen_domain(parse_options(['--domain', '7']), {'ROS_DOMAIN_ID': '42'}) == 7
+    with pytest.raises(ValueError, match='ROS_DOMAIN_ID'):
+        chosen_domain(parse_options([]), {'ROS_DOMAIN_ID': '500'})
+    with pytest.raises(SystemExit):
+        parse_options(['--domain', '-1'])
+
+
+def test_the_summary_counts_what_the_learner_logged(tmp_path):
+    from attention_bringup.report import learner_log_counts, summary_lines
+    log = tmp_path / 'feedback_log.jsonl'
+    lines = [{'kind': 'feedback', 'seq': 1, 'h': 1.0, 'status': 'ok'},
+             {'kind': 'feedback', 'seq': 2, 'h': 5.0, 'status': 'invalid'},
+             {'kind': 'feedback', 'seq': 3, 'h': -1.0, 'status': 'ok'},
+             {'kind': 'feedback', 'seq': 4, 'h': 1.0, 'status': 'ok'},
+             {'kind': 'utterance', 'text': 'go', 'status': 'ok'}]
+    log.write_text(''.join(json.dumps(line) + '\n' for line in lines) + '{"kind": "fee')
+    counts = learner_log_counts(log)
+    assert counts['feedback'] == 4 and counts['ok'] == 3 and counts['invalid'] == 1
+    assert counts['utterances'] == 1 and counts['mean_h'] == pytest.approx(1 / 3, abs=1e-4)
+    text = summary_lines({'learner_log': counts, 'utterance_count': 9})[1]
+    assert 'feedback logged by the learner 4 (3 used, 1 invalid, mean h +0.33)' in text
+    assert 'utterances 1' in text  # the learner's count, not the launcher's 9
+    assert learner_log_counts(tmp_path / 'none.jsonl') is None

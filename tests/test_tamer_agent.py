@@ -133,7 +133,8 @@ def test_feedback_before_any_observation_is_kept_in_the_log(agents, tmp_path):
     assert agent.metrics()['feedback/unmatched'] == 1
 
 
-@pytest.mark.parametrize('value', [float('nan'), float('inf'), -float('inf'), 1e9])
+@pytest.mark.parametrize('value', [float('nan'), float('inf'), -float('inf'), 1e9, 5.0, -50.0,
+                                   1.0001])
 def test_bad_feedback_values_are_logged_counted_and_not_learned(agents, tmp_path, value):
     agent = agents()
     play(agent, 2)

@@ -275,3 +275,30 @@ def test_start_up_errors_say_what_to_do(start_node, tmp_path):
     assert 'tamer_pretrain' in missing.log_text()
     assert wrong.process.wait(timeout=60) == 1
     assert 'credit' in wrong.log_text()
+
+
+def test_every_logged_feedback_and_utterance_gets_a_receipt(probe, start_node, tmp_path, frames):
+    run_dir = tmp_path / 'run'
+    node = start_node('tamer_node', {'run_dir': str(run_dir), 'metrics_period_s': 0.2})
+    graph = Graph(probe)
+    receipts = probe.subscribe(DiagnosticArray, topics.FEEDBACK_LOGGED, qos.HUMAN)
+    graph.wait_connected(node)
+    assert probe.wait_for_publishers(topics.FEEDBACK_LOGGED, timeout=30.0)
+    graph.step(frames[0], STEP_NS)
+    for h in (1.0, -1.0, 7.0):
+        graph.feedback.publish(Float32(data=h))
+    graph.utterance.publish(String(data='Climb down the ladder.'))
+    assert receipts.wait_count(4, 20.0), node.log_text()[-2000:]
+    got = [(m.status[0].name, {kv.key: kv.value for kv in m.status[0].values}, m.status[0].message)
+           for m in receipts.snapshot()]
+    feedback = [values for name, values, _ in got if name == 'feedback']
+    # The probe's publisher numbers its messages 1, 2, 3: the receipts name them.
+    assert [v['publication_seq'] for v in feedback] == ['1', '2', '3']
+    assert [v['status'] for v in feedback] == ['ok', 'ok', 'invalid']
+    assert [v['seq'] for v in feedback] == ['1', '2', '3'] and float(feedback[0]['h']) == 1.0
+    [(_, said, text)] = [g for g in got if g[0] == 'utterance']
+    assert text == 'Climb down the ladder.' and said['publication_seq'] == '1'
+    lines = [json.loads(line) for line in (run_dir / 'feedback_log.jsonl').read_text().splitlines()]
+    assert [line.get('publication_seq') for line in lines if line['kind'] == 'feedback'] == [1, 2, 3]
+    assert all(line['source_time_ns'] > 0 for line in lines)
+    assert node.stop() == 0

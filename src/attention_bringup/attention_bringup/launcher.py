@@ -1,7 +1,8 @@
 """
 ``attention_train``: train the agent with the whole graph, in one command.
 
-Reserves a ROS domain of its own (localhost discovery), starts the four node executables from
+Runs in the ROS domain the user chose (``--domain``, else ``ROS_DOMAIN_ID`` when set) or else
+reserves one of its own (localhost discovery either way), starts the four node executables from
 this Python's bin folder as separate processes, each with the same ``--params-file`` list
 (graph defaults, condition, the user's files, the launcher's overrides), watches the graph with
 its own node, shows a progress bar, stops every node cleanly (SIGINT, then SIGTERM / SIGKILL
@@ -11,6 +12,7 @@ Exit code: 0 when the budget was trained and every node exited with 0; 1 when a 
 the graph stalled or a node did not stop cleanly; 2 for bad options or files; 130 on Ctrl-C.
 """
 
+import contextlib
 import datetime
 import os
 from pathlib import Path
@@ -25,7 +27,7 @@ from attention_bringup.gallery import GalleryCollector
 from attention_bringup.graph import NODES
 from attention_bringup.params import ParamsFileError
 from attention_bringup.plan import (
-    build_plan, Continuation, LaunchPlan, OPTIONS_FILE, OVERRIDES_FILE, parse_options,
+    build_plan, chosen_domain, Continuation, LaunchPlan, OPTIONS_FILE, OVERRIDES_FILE, parse_options,
     resumed_options, save_options)
 from attention_bringup.processes import (
     cpu_seconds, exit_description, log_tail, NodeGroup, resident_memory_kb)
@@ -338,6 +340,7 @@ class Launcher:
                                 queried)
         summary['cpu_s'] = {name: None if value is None else round(value, 2)
                             for name, value in cpu.items()}
+        summary['learner_log'] = report.learner_log_counts(run_dir / 'feedback_log.jsonl')
         title = (f'{self.plan.options.condition}, seed {self.plan.seed}, '
                  f'{summary["steps"]} steps')
         rows = report.read_rows_for_plot(run_dir / report.PROGRESS_FILE, tracker.row_count)
@@ -476,7 +479,13 @@ def main(argv: Optional[list] = None) -> int:
         sys.stderr.write(f'attention_train: node executables not found: {", ".join(missing)} '
                          '(run make setup)\n')
         return 2
-    with reserved_domain() as domain_id:
+    try:
+        chosen = chosen_domain(plan.options, os.environ)
+    except ValueError as error:
+        sys.stderr.write(f'attention_train: {error}\n')
+        return 2
+    domain = reserved_domain() if chosen is None else contextlib.nullcontext(chosen)
+    with domain as domain_id:
         try:
             return Launcher(plan, domain_id).run()
         except FileExistsError as error:

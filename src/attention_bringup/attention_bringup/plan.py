@@ -74,6 +74,8 @@ class LaunchOptions:
     """Keep the thesis's learner with the teacher (no ``greedy_margin``)."""
     resume: Optional[str] = None
     """A run folder whose nodes were killed: continue it with its own options."""
+    domain: Optional[int] = None
+    """ROS_DOMAIN_ID of the run (None: ``ROS_DOMAIN_ID`` if set, else a free one, reserved)."""
 
 
 def positive_int(text: str) -> int:
@@ -82,6 +84,34 @@ def positive_int(text: str) -> int:
     if value < 1:
         raise argparse.ArgumentTypeError(f'must be at least 1, got {value}')
     return value
+
+
+MAX_DOMAIN_ID = 232
+"""The largest ROS_DOMAIN_ID whose DDS ports fit (ROS 2's documented range, 0..232)."""
+
+
+def domain_id(text: str) -> int:
+    """Parse a ROS_DOMAIN_ID, 0..232 (an argparse type)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'a domain is a whole number, got {text!r}') from None
+    if not 0 <= value <= MAX_DOMAIN_ID:
+        raise argparse.ArgumentTypeError(f'must be 0..{MAX_DOMAIN_ID}, got {value}')
+    return value
+
+
+def chosen_domain(options: LaunchOptions, environ) -> Optional[int]:
+    """Return the domain the user chose (``--domain``, else ``ROS_DOMAIN_ID``), or None."""
+    if options.domain is not None:
+        return options.domain
+    text = environ.get('ROS_DOMAIN_ID', '').strip()
+    if not text:
+        return None
+    try:
+        return domain_id(text)
+    except argparse.ArgumentTypeError as error:
+        raise ValueError(f'ROS_DOMAIN_ID: {error}') from None
 
 
 def argument_parser() -> argparse.ArgumentParser:
@@ -120,6 +150,9 @@ def argument_parser() -> argparse.ArgumentParser:
                         help="with the teacher, keep the thesis's greedy policy (argmax, ties "
                              'to the lowest action) instead of greedy_margin '
                              f'{TEACHING_GREEDY_MARGIN:g}')
+    parser.add_argument('--domain', type=domain_id, default=None, metavar='ID',
+                        help='ROS_DOMAIN_ID of the graph, to join it from another shell (default: '
+                             'ROS_DOMAIN_ID if set, else a free domain reserved for the run)')
     parser.add_argument('--resume', metavar='RUN_DIR', default=None,
                         help='continue a run whose nodes were killed (or that was stopped), with '
                              'the options it was started with, up to its budget: the learner '

@@ -68,13 +68,47 @@ def write_params(path: Path, node_params: Mapping[str, Mapping[str, object]],
     path.write_text(dump_params(graph, header=header))
 
 
+def learner_log_counts(path: Path) -> Optional[dict]:
+    """
+    Count what the learner logged in ``feedback_log.jsonl`` (streamed; None without the file).
+
+    The learner's own record, not what the launcher happened to hear: feedback lines by
+    status, the mean h of those it accepted, and its utterance lines.
+    """
+    if not Path(path).exists():
+        return None
+    counts = {'feedback': 0, 'ok': 0, 'invalid': 0, 'duplicate': 0, 'no_observation': 0,
+              'utterances': 0}
+    total_h = 0.0
+    with open(path, encoding='utf-8', errors='replace') as file:
+        for line in file:
+            try:
+                entry = json.loads(line)
+            except ValueError:  # cut short by a crash
+                continue
+            if entry.get('kind') == 'utterance':
+                counts['utterances'] += 1
+            elif entry.get('kind') == 'feedback':
+                counts['feedback'] += 1
+                status = entry.get('status', 'ok')
+                counts[status] = counts.get(status, 0) + 1
+                if status == 'ok':
+                    total_h += float(entry.get('h', 0.0))
+    counts['mean_h'] = round(total_h / counts['ok'], 4) if counts['ok'] else None
+    return counts
+
+
 def feedback_text(summary: Mapping) -> str:
-    """Return the learner's own count of feedback if known (the launcher hears only part)."""
+    """Return the learner's own count of feedback (its log; the launcher hears only part)."""
+    logged = summary.get('learner_log')
+    if logged is not None:
+        mean = f', mean h {logged["mean_h"]:+.2f}' if logged.get('mean_h') is not None else ''
+        return (f'feedback logged by the learner {logged["feedback"]} ({logged["ok"]} used, '
+                f'{logged["invalid"]} invalid{mean})')
     received = summary.get('metrics', {}).get('feedback/received')
     if received is not None:
         return f'feedback received by the learner {int(received)}'
-    return (f'feedback {summary.get("feedback_count", 0)} '
-            f'(mean h {summary.get("feedback_mean", 0):+.2f})')
+    return 'no feedback log from the learner'
 
 
 def summary_lines(summary: Mapping) -> List[str]:
@@ -90,6 +124,8 @@ def summary_lines(summary: Mapping) -> List[str]:
                  else '')
     updates = metrics.get('train/updates')
     updates_text = f'{updates} learner updates' if updates is not None else 'learner'
+    logged = summary.get('learner_log') or {}
+    utterances = logged.get('utterances', summary.get('utterance_count', 0))
     first_key = summary.get('first_key_step')
     key_text = (f'the key at step {first_key} ({summary.get("keys", 0)} in all)'
                 if first_key is not None else 'no key')
@@ -97,7 +133,7 @@ def summary_lines(summary: Mapping) -> List[str]:
         f'{summary.get("steps", 0)} steps in {format_duration(summary.get("wall_time_s", 0))} '
         f'({summary.get("steps_per_s", 0):.1f} steps/s), {summary.get("episodes", 0)} episodes, '
         f'{key_text}; {reached}',
-        f'{feedback_text(summary)}, utterances {summary.get("utterance_count", 0)}, '
+        f'{feedback_text(summary)}, utterances {utterances}, '
         'saliency images '
         f'{counts.get("saliency", 0)}; {updates_text}{loss_text}',
         f'{summary.get("status", "?")}: {summary.get("exit_text", "")}',

@@ -20,3 +20,5 @@ SALIENCY = 'saliency'                # sensor_msgs/Image rgb8, same stamp as its
 SALIENCY_MASK = 'saliency_mask'      # sensor_msgs/Image mono8 debug view of the mask
 
 METRICS = 'metrics'                  # diagnostic_msgs/DiagnosticArray, learner metrics
+FEEDBACK_LOGGED = 'feedback_logged'  # diagnostic_msgs/DiagnosticArray, one per line the learner
+#                                      logged (feedback or utterance): the trainer console's receipt

@@ -25,6 +25,7 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from env_node.core import EnvConfig, MontezumaEnv, Step
 from env_node.status import Counters, NO_LATENCY, STATUS_KEYS, STATUS_NAME, status_values
 from geometry_msgs.msg import PointStamped
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock as ClockMsg
@@ -62,7 +63,11 @@ PARAMETERS = {
                                         'the first steps while DDS discovery runs.'),
     'wait_position_subscribers': (0, 'Start-up: likewise for agent_position (the '
                                      'synthetic trainer).'),
+    'paused': (False, 'true: no steps are taken (real time: the timer skips; lockstep: the '
+                      'answer waits until resumed) and simulation time stands still. Settable '
+                      'at run time (the trainer console pauses with it).'),
 }
+RUNTIME_PARAMETERS = ('paused',)
 
 
 class EnvNode(Node):
@@ -72,7 +77,9 @@ class EnvNode(Node):
 
     def __init__(self, **kwargs):
         super().__init__('env_node', **kwargs)
-        params = declare_parameters(self, PARAMETERS)
+        params = declare_parameters(self, PARAMETERS, runtime=RUNTIME_PARAMETERS)
+        self._paused = bool(params['paused'])
+        self._deferred = None  # lockstep, paused: the answer to apply on resume
         self._rate_hz = params['rate_hz']
         self._action_timeout = params['action_timeout']
         self._max_steps = params['max_steps']
@@ -112,6 +119,7 @@ class EnvNode(Node):
         self._status_pub = self.create_publisher(DiagnosticArray, topics.ENV_STATUS, qos.STEP_DATA)
         self._clock_pub = self.create_publisher(ClockMsg, topics.CLOCK, qos.CLOCK)
         self.create_subscription(Joy, topics.ACTION, self._on_action, qos.ACTIONS)
+        self.add_on_set_parameters_callback(self._on_set_parameters)
 
         # Callbacks run one at a time (single-threaded executor, one callback group); the lock
         # keeps the pending stamp and the step atomic even under a multi-threaded executor.
@@ -267,8 +275,25 @@ class EnvNode(Node):
 
     def _on_tick(self) -> None:
         with self._lock:
-            if not self._finished:
+            if not self._finished and not self._paused:
                 self._advance(self._latest_action)
+
+    def _on_set_parameters(self, parameters) -> SetParametersResult:
+        for parameter in parameters:
+            if parameter.name != 'paused' or not isinstance(parameter.value, bool):
+                return SetParametersResult(
+                    successful=False, reason='only paused (true/false) is settable at run time')
+        for parameter in parameters:
+            with self._lock:
+                changed = parameter.value != self._paused
+                self._paused = parameter.value
+                if not self._paused and self._deferred is not None:
+                    action, self._deferred = self._deferred, None
+                    if not self._finished:
+                        self._advance(action)  # the answer that came while paused
+            if changed:
+                self.get_logger().info('paused' if parameter.value else 'resumed')
+        return SetParametersResult(successful=True)
 
     def _drop(self, bad: bool = False) -> int:
         counters = self._counters
@@ -299,7 +324,10 @@ class EnvNode(Node):
                 if not self._answered:
                     self._answered = True
                     self._start_timer.cancel()
-                self._advance(action)
+                if self._paused:
+                    self._deferred = action  # applied when resumed
+                else:
+                    self._advance(action)
                 return
         if pending is None:
             self.get_logger().warning(

@@ -149,8 +149,9 @@ class SaliencyNode(Node):
                 f'{self.counters["observations_without_utterance"]} observations so far had no '
                 'valid utterance: no saliency image for them', throttle_duration_sec=30.0)
         if not released and self._timeline.held == 1:
-            holding = (f'no utterance valid at {stamp / NS_PER_S:.3f}s: holding observations '
-                       f'(up to {self._timeline.capacity}) for a late stamped utterance')
+            holding = (f'no utterance valid at {stamp / NS_PER_S:.3f}s: no saliency image until '
+                       f'one is said (the last {self._timeline.capacity} observations are kept '
+                       'for an utterance stamped with them that comes late)')
             if self.counters['utterances']:  # (rclpy wants one severity per call site)
                 self.get_logger().debug(holding)
             else:

@@ -15,6 +15,7 @@ import threading
 import time
 from typing import Callable, List, Optional, Tuple
 
+from attention_common.feedback import FEEDBACK_RANGE
 from attention_common.stamps import NS_PER_S, StampGuard
 from attention_common.utterance import MAX_UTTERANCE_CHARS
 import cv2
@@ -117,6 +118,8 @@ class TamerAgent:
         self._last_rate = (time.monotonic(), 0)
         self._started = False
         self._updates_at_start = (0, 0)  # (all, minibatch) updates before this process
+        self.on_logged: Optional[Callable[[dict], None]] = None
+        """Called on the disk thread with each feedback_log.jsonl entry once it is written."""
 
     def _check_run_dir(self) -> None:
         self.run_dir.mkdir(parents=True, exist_ok=True)
@@ -312,7 +315,7 @@ class TamerAgent:
         arrived = time.monotonic()
         h = float(h)
         status = 'ok'
-        if not math.isfinite(h) or abs(h) > self.config.feedback_limit:
+        if not math.isfinite(h) or abs(h) > FEEDBACK_RANGE:  # the one range of every node
             status = 'invalid'
         elif source == 'stamped':
             self._stamped_at = arrived
@@ -335,7 +338,7 @@ class TamerAgent:
             self.disk.submit(lambda: self._log_then_learn(entry, event))
         if status == 'invalid':
             self._log('warn', f'feedback #{event.seq} h={h} is not a finite number within '
-                      f'+-{self.config.feedback_limit}: logged, not learned from')
+                      f'[-{FEEDBACK_RANGE:g}, {FEEDBACK_RANGE:g}]: logged, not learned from')
         elif status == 'no_observation':
             self._log('warn', f'feedback #{event.seq} came before any observation: logged, '
                       'not learned from')
@@ -351,9 +354,22 @@ class TamerAgent:
             self.counters['disk/feedback_log_errors'] += 1
             self._log('error', f'feedback #{event.seq} could not be written to '
                       f'{self.feedback_log.path}: {error}')
+        else:
+            self._receipt(entry)
         self.worker.submit(event)
 
-    def on_utterance(self, text: str) -> str:
+    def _receipt(self, entry: dict) -> None:
+        if self.on_logged is not None:
+            try:
+                self.on_logged(entry)
+            except Exception as error:  # a receipt must never cost the feedback
+                self._log('error', f'receipt for a logged {entry["kind"]} failed: {error!r}')
+
+    def _log_utterance(self, entry: dict) -> None:
+        self.feedback_log.append(entry)
+        self._receipt(entry)
+
+    def on_utterance(self, text: str, extra: Optional[dict] = None) -> str:
         """
         Record an utterance in the feedback log (the saliency node turns it into images).
 
@@ -375,7 +391,8 @@ class TamerAgent:
         entry = {'kind': 'utterance', 'wall_time': time.time(), 'now_ns': self._now,
                  'session': self.session, 'status': status, 'chars': len(text),
                  'text': text[:MAX_UTTERANCE_CHARS]}
-        self.disk.submit(lambda: self.feedback_log.append(entry))
+        entry.update(extra or {})
+        self.disk.submit(lambda: self._log_utterance(entry))
         return status
 
     def set_alpha(self, alpha: float) -> None:

@@ -49,8 +49,6 @@ class TamerConfig:
     """Recent steps (image, action, time span) kept for attributing feedback to them."""
     stamped_active_s: float = 3.0
     """Wall seconds after a stamped feedback during which plain feedback counts as its copy."""
-    feedback_limit: float = 100.0
-    """Largest |h| accepted; larger (and NaN/inf) feedback is logged, counted and not learned."""
     max_stamp_jump_s: float = MAX_STAMP_JUMP_S
     """Simulation seconds: an image stamped further than this from the newest observation is
     dropped with a warning (3 such observations in a row that continue each other: the env
@@ -103,7 +101,6 @@ class TamerConfig:
             'saliency_timeout_s': self.saliency_timeout_s >= 0.0,
             'history_steps': self.history_steps >= 2,
             'stamped_active_s': self.stamped_active_s >= 0.0,
-            'feedback_limit': self.feedback_limit > 0.0,
             'max_stamp_jump_s': self.max_stamp_jump_s > 0.0,
             'checkpoint_period_s': self.checkpoint_period_s >= 0.0,
             'metrics_period_s': self.metrics_period_s > 0.0,

@@ -2,7 +2,8 @@
 tamer_node: Deep TAMER with the saliency L2 term over ROS topics (a thin shell on TamerAgent).
 
 Subscribes ``observation``, ``saliency``, ``feedback``, ``feedback_stamped``, ``utterance``;
-publishes ``action`` (sensor_msgs/Joy with the answered image's header) and ``metrics``.
+publishes ``action`` (sensor_msgs/Joy with the answered image's header), ``metrics``, and
+``feedback_logged``: one receipt per feedback or utterance line written to the log.
 Every TamerConfig field is a parameter of the same name; ``alpha`` may be changed at run time.
 
 Executor: a SingleThreadedExecutor on purpose. Every callback only converts and hands over
@@ -58,6 +59,9 @@ class TamerNode(Node):
 
         self.action_pub = self.create_publisher(Joy, topics.ACTION, qos.ACTIONS)
         self.metrics_pub = self.create_publisher(DiagnosticArray, topics.METRICS, qos.METRICS)
+        self.logged_pub = self.create_publisher(DiagnosticArray, topics.FEEDBACK_LOGGED,
+                                                qos.HUMAN)
+        self.agent.on_logged = self._publish_receipt
         self.create_subscription(Image, topics.OBSERVATION, self._on_observation, qos.FRAMES)
         self.create_subscription(Image, topics.SALIENCY, self._on_saliency, qos.FRAMES)
         self.create_subscription(Vector3Stamped, topics.FEEDBACK_STAMPED,
@@ -149,20 +153,35 @@ class TamerNode(Node):
         joy.buttons = [int(b) for b in buttons]
         self.action_pub.publish(joy)
 
-    # Feedback path.
-    def _on_feedback_stamped(self, msg: Vector3Stamped) -> None:
+    # Feedback path. Each message's DDS identity (the publisher's sequence number and its
+    # source time) is logged with it, so a publisher (the trainer console) can tell from the
+    # receipt on feedback_logged that *its* message reached the log.
+    def _on_feedback_stamped(self, msg: Vector3Stamped, info) -> None:
         extra = {'critical_position': json_number(msg.vector.y),
-                 'distance': json_number(msg.vector.z)}
+                 'distance': json_number(msg.vector.z), **_identity(info)}
         self.agent.on_feedback(msg.vector.x, 'stamped', stamp_to_ns(msg.header.stamp), extra)
 
-    def _on_feedback(self, msg: Float32) -> None:
-        self.agent.on_feedback(msg.data, 'plain')
+    def _on_feedback(self, msg: Float32, info) -> None:
+        self.agent.on_feedback(msg.data, 'plain', extra=_identity(info))
 
-    def _on_utterance(self, msg: String) -> None:
-        if self.agent.on_utterance(msg.data) == 'ok':
+    def _on_utterance(self, msg: String, info) -> None:
+        if self.agent.on_utterance(msg.data, _identity(info)) == 'ok':
             text = msg.data
             shown = text if len(text) <= 200 else text[:200] + f'... ({len(text)} characters)'
             self.get_logger().info(f'utterance: {shown!r}')
+
+    def _publish_receipt(self, entry: dict) -> None:
+        """On the disk thread: say on feedback_logged what was just written to the log."""
+        keys = ('seq', 'h', 'source', 'status', 'stamp_ns', 'session', 'publication_seq',
+                'source_time_ns', 'chars')
+        status = DiagnosticStatus(level=DiagnosticStatus.OK, name=entry['kind'],
+                                  hardware_id='tamer_node',
+                                  message=entry.get('text', '')[:RECEIPT_TEXT_CHARS])
+        status.values = [KeyValue(key=key, value=_format(entry[key]))
+                         for key in keys if entry.get(key) is not None]
+        array = DiagnosticArray(status=[status])
+        array.header.stamp = self.get_clock().now().to_msg()
+        self.logged_pub.publish(array)
 
     def _log(self, level: str, text: str) -> None:
         logger = self.get_logger()
@@ -185,6 +204,15 @@ class TamerNode(Node):
         if agent is not None:
             agent.close()  # finishes pending feedback, writes the last checkpoint
         super().destroy_node()
+
+
+RECEIPT_TEXT_CHARS = 200
+
+
+def _identity(info) -> dict:
+    """The DDS identity of a received message (rclpy's MessageInfo), for the log."""
+    return {'publication_seq': info.get('publication_sequence_number'),
+            'source_time_ns': info.get('source_timestamp')}
 
 
 def _format(value) -> str:
