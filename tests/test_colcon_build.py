@@ -11,7 +11,7 @@ import pytest
 REPO = Path(__file__).resolve().parents[1]
 SRC = REPO / 'src'
 COLCON = Path(sys.executable).parent / 'colcon'
-NODES = ('env_node', 'feedback_node', 'saliency_node', 'tamer_node')
+NODES = ('env_node', 'feedback_node', 'saliency_node', 'tamer_node', 'trainer_console')
 
 
 def package_names():

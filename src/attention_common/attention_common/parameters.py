@@ -1,5 +1,8 @@
-"""Declare a node's parameters from one table, with types checked at start-up."""
+"""Declare a node's parameters from one table (or one dataclass), with types checked at start-up."""
 
+import ast
+import dataclasses
+import inspect
 from typing import Dict, Iterable, Mapping, Tuple
 
 from attention_common.node_main import StartupError
@@ -32,3 +35,25 @@ def declare_parameters(node, specs: Mapping[str, Tuple[object, str]],
             value = float(value)
         values[name] = value
     return values
+
+
+def field_docs(cls) -> Dict[str, str]:
+    """Return {field name: the docstring written under it} of a dataclass."""
+    tree = ast.parse(inspect.getsource(cls))
+    body = tree.body[0].body
+    docs = {}
+    for node, following in zip(body, body[1:]):
+        if (isinstance(node, ast.AnnAssign) and isinstance(node.target, ast.Name)
+                and isinstance(following, ast.Expr)
+                and isinstance(following.value, ast.Constant)
+                and isinstance(following.value.value, str)):
+            docs[node.target.id] = ' '.join(following.value.value.split())
+    return docs
+
+
+def declare_dataclass(node, cls, runtime: Iterable[str] = ()):
+    """Declare one parameter per field of the dataclass ``cls`` (its docstring, its default)."""
+    docs = field_docs(cls)
+    specs = {field.name: (field.default, docs.get(field.name, ''))
+             for field in dataclasses.fields(cls)}
+    return cls(**declare_parameters(node, specs, runtime=runtime))

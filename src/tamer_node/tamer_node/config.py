@@ -1,11 +1,10 @@
 """Every hyperparameter of the learner in one dataclass; each field is a ROS parameter too."""
 
-import ast
 import dataclasses
 from dataclasses import dataclass
-import inspect
 from typing import Dict
 
+from attention_common.parameters import field_docs as _field_docs
 from attention_common.stamps import MAX_STAMP_JUMP_S
 
 CREDIT_MODES = ('step', 'window')
@@ -113,17 +112,8 @@ class TamerConfig:
 
 
 def field_docs(cls=TamerConfig) -> Dict[str, str]:
-    """Return {field name: the docstring written under it} of a dataclass."""
-    tree = ast.parse(inspect.getsource(cls))
-    body = tree.body[0].body
-    docs = {}
-    for node, following in zip(body, body[1:]):
-        if (isinstance(node, ast.AnnAssign) and isinstance(node.target, ast.Name)
-                and isinstance(following, ast.Expr)
-                and isinstance(following.value, ast.Constant)
-                and isinstance(following.value.value, str)):
-            docs[node.target.id] = ' '.join(following.value.value.split())
-    return docs
+    """Return {field name: the docstring written under it} of TamerConfig (or ``cls``)."""
+    return _field_docs(cls)
 
 
 def field_names(cls=TamerConfig):

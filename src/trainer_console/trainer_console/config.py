@@ -1,0 +1,48 @@
+"""The console's parameters, in one dataclass (each field is a ROS parameter of that name)."""
+
+from dataclasses import dataclass
+import ipaddress
+import socket
+
+DEFAULT_PORT = 8080
+
+
+@dataclass
+class ConsoleConfig:
+    """Where the console serves its page, and what it shows."""
+
+    host: str = '127.0.0.1'
+    """Address the web server binds to; anything but loopback also needs allow_remote:=true."""
+    port: int = DEFAULT_PORT
+    """TCP port of the page (0: any free one, printed at start-up)."""
+    allow_remote: bool = False
+    """Serve a non-loopback host; then every request needs the token printed at start-up."""
+    token: str = ''
+    """The token remote browsers must send (?token=...); '' = a new random one per start."""
+    frame_rate_hz: float = 15.0
+    """Most frames per second sent to each browser (the env's real-time rate)."""
+    jpeg_quality: int = 85
+    """JPEG quality of the frames sent (1-100)."""
+    env_node: str = 'env_node'
+    """Name of the env node whose ``paused`` parameter the pause button sets."""
+
+    def validate(self) -> None:
+        """Raise ValueError naming the first impossible value."""
+        if not 0 <= self.port <= 65535:
+            raise ValueError(f'port must be 0..65535, got {self.port}')
+        if not self.frame_rate_hz > 0:
+            raise ValueError(f'frame_rate_hz must be > 0, got {self.frame_rate_hz}')
+        if not 1 <= self.jpeg_quality <= 100:
+            raise ValueError(f'jpeg_quality must be 1..100, got {self.jpeg_quality}')
+        if not self.loopback and not self.allow_remote:
+            raise ValueError(f'host {self.host!r} is not loopback: the console would be open to '
+                             'your network; pass allow_remote:=true to mean it (a token is '
+                             'then required)')
+
+    @property
+    def loopback(self) -> bool:
+        """Tell whether ``host`` only ever reaches this machine."""
+        try:
+            return ipaddress.ip_address(socket.gethostbyname(self.host)).is_loopback
+        except (OSError, ValueError):
+            return False

@@ -1,0 +1,197 @@
+"""
+trainer_console: a person teaches from the browser (a thin rclpy shell on ConsoleState).
+
+Subscribes ``observation`` and ``saliency`` (shown live, as JPEG over a websocket),
+``env_status``, ``metrics``, ``utterance``, ``utterance_stamped`` and ``feedback_logged`` (the
+learner's receipts); publishes ``feedback`` (std_msgs/Float32) and ``utterance``
+(std_msgs/String), the very topics ``ros2 topic pub`` uses, and sets env_node's ``paused``.
+The web server runs on its own thread (``web.ConsoleServer``); rclpy spins in the main one.
+"""
+
+import math
+import secrets
+import threading
+import time
+
+from attention_common import qos, topics
+from attention_common.feedback import FEEDBACK_RANGE
+from attention_common.image_codec import image_to_numpy, ImageFormatError
+from attention_common.node_main import run_node, StartupError
+from attention_common.parameters import declare_dataclass
+from attention_common.utterance import MAX_UTTERANCE_CHARS
+import cv2
+from diagnostic_msgs.msg import DiagnosticArray
+from env_node.status import parse_status
+from feedback_node.critical_positions import critical_position_at
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.parameter_client import AsyncParameterClient
+from saliency_node.grounding import Grounder
+from saliency_node.manifest import load_manifest
+from sensor_msgs.msg import Image
+from std_msgs.msg import Float32, String
+from trainer_console.config import ConsoleConfig
+from trainer_console.state import ConsoleState
+from trainer_console.web import ConsoleServer, Frames
+
+MAX_PIXELS = 1024 * 1024
+"""Larger images are not shown (and never decoded)."""
+
+
+class ConsoleNode(Node):
+    """The trainer's console: serves the page, publishes what the person gives."""
+
+    def __init__(self, **kwargs):
+        super().__init__('trainer_console', **kwargs)
+        self.config = declare_dataclass(self, ConsoleConfig)
+        try:
+            self.config.validate()
+        except ValueError as error:
+            raise StartupError(f'trainer_console: {error}') from None
+        grounder = Grounder.from_manifest(load_manifest(None))
+        self.state = ConsoleState(ground=lambda text: grounder.ground(text).objects,
+                                  position_of=critical_position_at)
+        self.frames = Frames()
+        self._encoded_at = {'frame': 0.0, 'saliency': 0.0}
+        self._publish_lock = threading.Lock()  # publish and its sequence number together
+        self._published = {'feedback': 0, 'utterance': 0}
+        self._feedback_pub = self.create_publisher(Float32, topics.FEEDBACK, qos.HUMAN)
+        self._utterance_pub = self.create_publisher(String, topics.UTTERANCE, qos.HUMAN)
+        self.create_subscription(Image, topics.OBSERVATION,
+                                 lambda msg: self._on_image('frame', msg), qos.FRAMES)
+        self.create_subscription(Image, topics.SALIENCY,
+                                 lambda msg: self._on_image('saliency', msg), qos.FRAMES)
+        self.create_subscription(DiagnosticArray, topics.ENV_STATUS, self._on_status,
+                                 qos.STEP_DATA)
+        self.create_subscription(DiagnosticArray, topics.METRICS, self._on_metrics, qos.METRICS)
+        self.create_subscription(String, topics.UTTERANCE,
+                                 lambda msg: self.state.on_utterance(msg.data), qos.HUMAN)
+        self.create_subscription(DiagnosticArray, topics.UTTERANCE_STAMPED,
+                                 self._on_utterance_stamped, qos.HUMAN)
+        self.create_subscription(DiagnosticArray, topics.FEEDBACK_LOGGED, self._on_receipt,
+                                 qos.HUMAN)
+        self._env_parameters = AsyncParameterClient(self, self.config.env_node)
+        token = None
+        if not self.config.loopback:
+            token = self.config.token or secrets.token_urlsafe(16)
+        self.server = ConsoleServer(self.config.host, self.config.port, self.frames,
+                                    self.state.snapshot, self.on_command,
+                                    self.config.frame_rate_hz, token,
+                                    log=self.get_logger().warning)
+        try:
+            port = self.server.start()
+        except OSError as error:
+            raise StartupError(f'trainer_console: cannot serve on {self.config.host}:'
+                               f'{self.config.port} ({error})') from None
+        self.url = f'http://{self.config.host}:{port}/' + (f'?token={token}' if token else '')
+        self.get_logger().info(f'trainer console at {self.url}')
+
+    # What the console hears.
+    def _on_image(self, kind: str, msg: Image) -> None:
+        now = time.monotonic()
+        if now - self._encoded_at[kind] < 1.0 / self.config.frame_rate_hz:
+            return
+        if msg.encoding != 'rgb8' or msg.height * msg.width > MAX_PIXELS:
+            self.get_logger().warning(f'{kind} not shown: {msg.encoding} {msg.width}x'
+                                      f'{msg.height}', throttle_duration_sec=10.0)
+            return
+        try:
+            rgb = image_to_numpy(msg)
+        except ImageFormatError as error:
+            self.get_logger().warning(f'{kind} not shown: {error}', throttle_duration_sec=10.0)
+            return
+        self._encoded_at[kind] = now
+        ok, jpeg = cv2.imencode('.jpg', cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR),
+                                [cv2.IMWRITE_JPEG_QUALITY, self.config.jpeg_quality])
+        if ok:
+            self.frames.put(kind, jpeg.tobytes())
+
+    def _on_status(self, msg: DiagnosticArray) -> None:
+        try:
+            values = parse_status((kv.key, kv.value) for kv in msg.status[0].values)
+        except (IndexError, ValueError):
+            return
+        self.state.on_status(values)
+
+    def _on_metrics(self, msg: DiagnosticArray) -> None:
+        values = {}
+        for kv in msg.status[0].values if msg.status else ():
+            try:
+                values[kv.key] = float(kv.value)
+            except ValueError:
+                pass
+        self.state.on_metrics(values)
+
+    def _on_utterance_stamped(self, msg: DiagnosticArray) -> None:
+        if msg.status:
+            self.state.on_utterance(msg.status[0].message)
+
+    def _on_receipt(self, msg: DiagnosticArray) -> None:
+        for status in msg.status:
+            values = {kv.key: kv.value for kv in status.values}
+            try:
+                seq = int(values['publication_seq'])
+                source = int(values['source_time_ns'])
+            except (KeyError, ValueError):
+                continue
+            self.state.on_receipt(status.name, seq, source, values.get('status', 'ok'))
+
+    # What the person gives (called on the web server's worker threads).
+    def on_command(self, command: dict) -> dict:
+        kind = command.get('type')
+        if kind == 'feedback':
+            h = command.get('h')
+            if (isinstance(h, bool) or not isinstance(h, (int, float)) or not math.isfinite(h)
+                    or abs(h) > FEEDBACK_RANGE):
+                return {'ok': False, 'error': f'feedback must be in [-{FEEDBACK_RANGE:g}, '
+                                              f'{FEEDBACK_RANGE:g}], got {h!r}'}
+            return self._give('feedback', float(h), Float32(data=float(h)))
+        if kind == 'utterance':
+            text = command.get('text')
+            if not isinstance(text, str) or not text.strip():
+                return {'ok': False, 'error': 'an utterance needs words'}
+            if len(text) > MAX_UTTERANCE_CHARS:
+                return {'ok': False, 'error': f'at most {MAX_UTTERANCE_CHARS} characters'}
+            return self._give('utterance', text, String(data=text))
+        if kind in ('pause', 'resume'):
+            return self._pause(kind == 'pause')
+        return {'ok': False, 'error': f'unknown command {kind!r}'}
+
+    def _give(self, kind: str, value, msg) -> dict:
+        publisher = self._feedback_pub if kind == 'feedback' else self._utterance_pub
+        with self._publish_lock:
+            sent_ns = time.time_ns()
+            publisher.publish(msg)
+            self._published[kind] += 1
+            seq = self._published[kind]  # DDS numbers this publisher's messages 1, 2, 3, ...
+            self.state.sent(kind, value, seq, sent_ns)
+        self.get_logger().info(f'the person gave {kind} {value!r} (#{seq})')
+        return {'ok': True, 'seq': seq}
+
+    def _pause(self, paused: bool) -> dict:
+        if not self._env_parameters.services_are_ready():
+            return {'ok': False, 'error': f'{self.config.env_node} does not answer'}
+        future = self._env_parameters.set_parameters([Parameter('paused', value=paused)])
+        deadline = time.monotonic() + 5.0
+        while not future.done() and time.monotonic() < deadline:
+            time.sleep(0.01)
+        result = future.result() if future.done() else None
+        if result is None or not result.results[0].successful:
+            return {'ok': False, 'error': 'the env did not take it'}
+        self.state.paused = paused
+        self.get_logger().info('paused the env' if paused else 'resumed the env')
+        return {'ok': True}
+
+    def destroy_node(self) -> None:
+        server = getattr(self, 'server', None)
+        if server is not None:
+            server.stop()
+        super().destroy_node()
+
+
+def main(args=None) -> int:
+    return run_node(ConsoleNode, args)
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())

@@ -1,0 +1,136 @@
+"""
+The trainer console with a real browser (headless Chromium over CDP) and the real graph.
+
+A person's key presses and words go out on ``feedback`` and ``utterance``; the page confirms a
+press only once the learner's receipt names it; pause stops the real-time env.
+"""
+
+import asyncio
+import json
+import os
+import re
+import signal
+import socket
+import urllib.error
+import urllib.request
+
+from attention_common import qos, topics
+from cdp import Browser, CHROMIUM
+from diagnostic_msgs.msg import DiagnosticArray
+from harness import wait_until
+import pytest
+from trainer_console.config import ConsoleConfig
+from trainer_console.state import ConsoleState
+from trainer_console.web import ConsoleServer, Frames
+
+STARTUP_S = 60.0
+CI = bool(os.environ.get('CI'))
+
+
+def free_port() -> int:
+    with socket.socket() as probe_socket:
+        probe_socket.bind(('127.0.0.1', 0))
+        return probe_socket.getsockname()[1]
+
+
+def log_lines(run_dir):
+    path = run_dir / 'feedback_log.jsonl'
+    return [json.loads(line) for line in path.read_text().splitlines()] if path.exists() else []
+
+
+needs_chromium = pytest.mark.skipif(
+    CHROMIUM is None and not CI, reason='no chromium: apt-get install chromium (CI installs it)')
+
+
+@pytest.mark.topics
+@needs_chromium
+def test_a_person_teaches_from_the_browser(probe, start_node, tmp_path):
+    run_dir = tmp_path / 'run'
+    statuses = probe.subscribe(DiagnosticArray, topics.ENV_STATUS, qos.STEP_DATA)
+    tamer = start_node('tamer_node', {'run_dir': str(run_dir), 'credit': 'window',
+                                      'metrics_period_s': 0.3})
+    start_node('saliency_node', {})
+    port = free_port()
+    console = start_node('trainer_console', {'port': port})
+    assert console.wait_for_log('trainer console at', STARTUP_S), console.log_text()[-2000:]
+    url = re.search(r'trainer console at (\S+)', console.log_text()).group(1)
+    assert url == f'http://127.0.0.1:{port}/'
+    env = start_node('env_node', {'rate_hz': 15.0, 'warmup_steps': 0,
+                                  'wait_observation_subscribers': 3})
+    assert statuses.wait_count(5, STARTUP_S), env.log_text()[-2000:]
+
+    async def session():
+        async with Browser(url, tmp_path / 'chromium') as page:
+            assert await page.wait_for("document.getElementById('connection').textContent"
+                                       " === 'connected'")
+            assert await page.wait_for("document.getElementById('frame').naturalWidth === 160")
+            # Three judgements from the keyboard: +, ArrowUp, -.
+            for key in ('+', 'ArrowUp', '-'):
+                await page.press(key)
+            assert await page.wait_for(
+                "document.getElementById('confirmed').textContent === '3'"), (
+                await page.evaluate("document.body.innerText"))
+            # Words: typed into the box, sent with Enter; a '+' typed there is not feedback.
+            await page.evaluate("document.getElementById('utterance').focus()")
+            await page.type_text('climb down the ladder +')
+            await page.press('Enter')
+            assert await page.wait_for(
+                "document.getElementById('confirmed_utterances').textContent === '1'")
+            assert await page.wait_for(
+                "document.getElementById('named').textContent.includes('ladder')")
+            assert await page.wait_for(
+                "document.getElementById('saliency').naturalWidth === 160")
+            assert await page.evaluate("document.getElementById('given').textContent") == '3'
+            # Pause stops the real-time env; resume starts it again.
+            await page.evaluate("document.getElementById('pause').click()")
+            assert await page.wait_for("document.getElementById('pause').textContent"
+                                       " === 'resume'")
+            return await page.evaluate("document.getElementById('step').textContent")
+
+    asyncio.run(session())
+    assert env.wait_for_log('paused', 10.0)
+    count = len(statuses.snapshot())
+    assert not statuses.wait_count(count + 3, 1.5)  # no steps while paused
+    lines = log_lines(run_dir)
+    feedback = [line for line in lines if line['kind'] == 'feedback']
+    assert [(line['h'], line['source'], line['publication_seq']) for line in feedback] == [
+        (1.0, 'plain', 1), (1.0, 'plain', 2), (-1.0, 'plain', 3)]
+    assert [line['text'] for line in lines if line['kind'] == 'utterance'] == [
+        'climb down the ladder +']
+    assert wait_until(lambda: 'the person gave utterance' in console.log_text(), 5.0)
+    assert tamer.alive() and console.stop(signal.SIGINT) == 0
+
+
+def test_a_console_open_beyond_loopback_needs_allow_remote_and_a_token():
+    with pytest.raises(ValueError, match='allow_remote'):
+        ConsoleConfig(host='0.0.0.0').validate()
+    ConsoleConfig(host='0.0.0.0', allow_remote=True).validate()
+    assert ConsoleConfig().loopback and not ConsoleConfig(host='0.0.0.0').loopback
+    # The token check itself, on loopback (nothing here is served beyond this machine).
+    server = ConsoleServer('127.0.0.1', 0, Frames(), lambda: {}, lambda c: {'ok': True}, 15.0,
+                           token='s3cret')
+    port = server.start()
+    try:
+        with pytest.raises(urllib.error.HTTPError) as refused:
+            urllib.request.urlopen(f'http://127.0.0.1:{port}/', timeout=10)
+        assert refused.value.code == 403
+        with urllib.request.urlopen(f'http://127.0.0.1:{port}/?token=s3cret',
+                                    timeout=10) as page:
+            assert b'Trainer console' in page.read()
+    finally:
+        server.stop()
+
+
+def test_a_press_is_confirmed_only_by_the_receipt_that_names_it():
+    state = ConsoleState()
+    t = 1_800_000_000_000_000_000
+    state.sent('feedback', 1.0, 1, t)
+    state.sent('feedback', -1.0, 2, t + 10**8)
+    # Someone else's message (another publisher's #1, an hour earlier) confirms nothing.
+    assert state.on_receipt('feedback', 1, t - 3600 * 10**9) is None
+    assert state.on_receipt('utterance', 2, t) is None
+    assert state.on_receipt('feedback', 2, t + 10**8 + 5 * 10**6).value == -1.0
+    assert state.confirmed == {'feedback': 1, 'utterance': 0}
+    assert state.on_receipt('feedback', 2, t + 10**8) is None  # once
+    snapshot = state.snapshot()
+    assert snapshot['given']['feedback'] == 2 and len(snapshot['unconfirmed']) == 1
