@@ -10,6 +10,7 @@ import json
 import os
 from pathlib import Path
 import signal
+import socket
 import subprocess
 import sys
 
@@ -214,11 +215,18 @@ def test_ctrl_c_stops_every_node_cleanly(tmp_path):
 @pytest.mark.topics
 def test_realtime_without_the_synthetic_trainer(tmp_path):
     run_dir = tmp_path / 'run'
+    with socket.socket() as free:
+        free.bind(('127.0.0.1', 0))
+        port = free.getsockname()[1]
     result = subprocess.run(
         [LAUNCHER, '--steps', '60', '--realtime', '--no-synthetic', '--run-dir', str(run_dir),
-         '--quiet'], capture_output=True, text=True, timeout=180)
+         '--console', '--console-port', str(port)], capture_output=True, text=True, timeout=180)
     assert result.returncode == 0, result.stderr[-4000:]
     summary = _read_json(run_dir / 'summary.json')
+    # The console came up with the graph, its URL printed, and it stopped cleanly with it.
+    assert summary['console_url'] == f'http://127.0.0.1:{port}/'
+    assert f'Trainer console: http://127.0.0.1:{port}/' in result.stderr
+    assert summary['exit_codes'] == dict.fromkeys(NODES + ('trainer_console',), 0)
     params = yaml.safe_load((run_dir / 'params.yaml').read_text())
     assert params['env_node']['ros__parameters']['rate_hz'] == 15.0
     assert params['feedback_node']['ros__parameters']['synthetic'] is False

@@ -1,8 +1,8 @@
 """Unit tests of the launcher's pure parts: parameter files, conditions, plans, progress."""
 
 import ast
-import json
 import datetime
+import json
 from pathlib import Path
 
 from attention_bringup import graph

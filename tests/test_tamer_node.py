@@ -298,7 +298,8 @@ def test_every_logged_feedback_and_utterance_gets_a_receipt(probe, start_node, t
     assert [v['seq'] for v in feedback] == ['1', '2', '3'] and float(feedback[0]['h']) == 1.0
     [(_, said, text)] = [g for g in got if g[0] == 'utterance']
     assert text == 'Climb down the ladder.' and said['publication_seq'] == '1'
-    lines = [json.loads(line) for line in (run_dir / 'feedback_log.jsonl').read_text().splitlines()]
-    assert [line.get('publication_seq') for line in lines if line['kind'] == 'feedback'] == [1, 2, 3]
+    lines = [json.loads(line)
+             for line in (run_dir / 'feedback_log.jsonl').read_text().splitlines()]
+    assert [line['publication_seq'] for line in lines if line['kind'] == 'feedback'] == [1, 2, 3]
     assert all(line['source_time_ns'] > 0 for line in lines)
     assert node.stop() == 0

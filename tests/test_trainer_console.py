@@ -69,7 +69,7 @@ def test_a_person_teaches_from_the_browser(probe, start_node, tmp_path):
                 await page.press(key)
             assert await page.wait_for(
                 "document.getElementById('confirmed').textContent === '3'"), (
-                await page.evaluate("document.body.innerText"))
+                await page.evaluate('document.body.innerText'))
             # Words: typed into the box, sent with Enter; a '+' typed there is not feedback.
             await page.evaluate("document.getElementById('utterance').focus()")
             await page.type_text('climb down the ladder +')
@@ -134,3 +134,30 @@ def test_a_press_is_confirmed_only_by_the_receipt_that_names_it():
     assert state.on_receipt('feedback', 2, t + 10**8) is None  # once
     snapshot = state.snapshot()
     assert snapshot['given']['feedback'] == 2 and len(snapshot['unconfirmed']) == 1
+
+
+@pytest.mark.topics
+def test_teach_from_a_shell_reaches_the_learner_every_time(start_node, tmp_path):
+    """Each ``teach`` is a fresh process that exits 0 only once the learner logged it."""
+    import subprocess
+    from harness import BIN
+    run_dir = tmp_path / 'run'
+    tamer = start_node('tamer_node', {'run_dir': str(run_dir), 'credit': 'window'})
+    start_node('feedback_node', {'synthetic': False})  # a second subscriber, as in person mode
+    assert tamer.wait_for_log('ready', STARTUP_S)
+    given = ['good', 'bad', '+', '-', '0.5', 'good', 'bad', 'good']
+    for what in given:
+        result = subprocess.run([str(BIN / 'teach'), what], capture_output=True, text=True,
+                                timeout=60)
+        assert result.returncode == 0, (what, result.stderr)
+        assert 'logged by the learner (no_observation)' in result.stdout  # no env here
+    said = subprocess.run([str(BIN / 'teach'), 'say', 'jump over the skull'],
+                          capture_output=True, text=True, timeout=60)
+    assert said.returncode == 0, said.stderr
+    assert subprocess.run([str(BIN / 'teach'), '5'], capture_output=True,
+                          timeout=60).returncode == 2  # outside [-1, 1]: nothing sent
+    lines = log_lines(run_dir)
+    assert [line['h'] for line in lines if line['kind'] == 'feedback'] == [
+        1.0, -1.0, 1.0, -1.0, 0.5, 1.0, -1.0, 1.0]
+    assert [line['text'] for line in lines if line['kind'] == 'utterance'] == [
+        'jump over the skull']

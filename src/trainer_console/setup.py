@@ -21,6 +21,7 @@ setup(
     entry_points={
         'console_scripts': [
             'trainer_console = trainer_console.node:main',
+            'teach = trainer_console.teach:main',
         ],
     },
 )

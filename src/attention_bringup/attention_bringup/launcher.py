@@ -16,6 +16,7 @@ import contextlib
 import datetime
 import os
 from pathlib import Path
+import re
 import signal
 import sys
 import threading
@@ -27,7 +28,8 @@ from attention_bringup.gallery import GalleryCollector
 from attention_bringup.graph import NODES
 from attention_bringup.params import ParamsFileError
 from attention_bringup.plan import (
-    build_plan, chosen_domain, Continuation, LaunchPlan, OPTIONS_FILE, OVERRIDES_FILE, parse_options,
+    build_plan, chosen_domain, CONSOLE, Continuation, LaunchPlan, OPTIONS_FILE, OVERRIDES_FILE,
+    parse_options,
     resumed_options, save_options)
 from attention_bringup.processes import (
     cpu_seconds, exit_description, log_tail, NodeGroup, resident_memory_kb)
@@ -57,6 +59,7 @@ class Launcher:
         self.started_wall = time.monotonic()
         self.interactive = (not plan.options.quiet) and err.isatty()
         self._gallery_steps = {}  # gallery image stamp -> agent step
+        self.console_url: Optional[str] = None
 
     # -- set-up ---------------------------------------------------------------------------
     def _prepare_run_dir(self) -> None:
@@ -239,6 +242,7 @@ class Launcher:
             ended = self._interrupted_or_dead(group)
             if ended:
                 return ended
+            self._announce_console()
             with monitor.lock:
                 tracker = monitor.tracker
                 writer.write(tracker.take_new_rows())
@@ -263,6 +267,17 @@ class Launcher:
                 self._show(bar)
                 last_line = now
             time.sleep(0.2)
+
+    def _announce_console(self) -> None:
+        """Print the trainer console's URL once it serves (``--console``)."""
+        if not self.plan.options.console or self.console_url is not None:
+            return
+        command = next(c for c in self.plan.commands if c.name == CONSOLE)
+        found = re.search(r'trainer console at (\S+)', log_tail(command.log_path))
+        if found:
+            self.console_url = found.group(1)
+            self._say(f'Trainer console: {self.console_url} (open it in a browser: + or Up '
+                      'is good, - or Down is bad, type words and press Enter)')
 
     def _label_gallery(self, tracker, gallery) -> None:
         """Note the agent step of each gallery image while the tracker still knows it."""
@@ -363,7 +378,7 @@ class Launcher:
 
     def _exit_text(self, status, failed, exit_codes, group) -> str:
         if status == 'completed':
-            return 'all 4 nodes exited cleanly'
+            return f'all {len(group.nodes)} nodes exited cleanly'
         parts = []
         for node in group.nodes:
             code = exit_codes.get(node.name)
@@ -402,6 +417,7 @@ class Launcher:
             'budget': self.plan.options.steps,
             'steps': steps,
             'session': self.plan.continuation.session,
+            'console_url': self.console_url,
             'wall_time_s': round(time.monotonic() - self.started_wall, 2),
             'startup_s': first['wall_time_s'] if first else None,
             'training_time_s': round(training_s, 2),

@@ -27,6 +27,8 @@ REALTIME_RATE_HZ = 15.0
 """env_node ``rate_hz`` for ``--realtime``: with frameskip 4, exactly the Atari's 60 Hz."""
 
 OVERRIDES_FILE = 'launcher_overrides.yaml'
+CONSOLE = 'trainer_console'
+CONSOLE_PORT = 8080
 OPTIONS_FILE = 'launch_options.json'
 """The options a run was started with (``--resume`` continues with them)."""
 
@@ -76,6 +78,10 @@ class LaunchOptions:
     """A run folder whose nodes were killed: continue it with its own options."""
     domain: Optional[int] = None
     """ROS_DOMAIN_ID of the run (None: ``ROS_DOMAIN_ID`` if set, else a free one, reserved)."""
+    console: bool = False
+    """Start the trainer console too (a fifth process) and print its URL."""
+    console_port: int = CONSOLE_PORT
+    """The console's port on 127.0.0.1."""
 
 
 def positive_int(text: str) -> int:
@@ -153,6 +159,11 @@ def argument_parser() -> argparse.ArgumentParser:
     parser.add_argument('--domain', type=domain_id, default=None, metavar='ID',
                         help='ROS_DOMAIN_ID of the graph, to join it from another shell (default: '
                              'ROS_DOMAIN_ID if set, else a free domain reserved for the run)')
+    parser.add_argument('--console', action='store_true',
+                        help='also start the trainer console (a web page on 127.0.0.1) and print '
+                             'its URL: a person judges with the keyboard and types utterances')
+    parser.add_argument('--console-port', dest='console_port', type=int, default=CONSOLE_PORT,
+                        help=f'port of the console (default {CONSOLE_PORT}; 0: any free one)')
     parser.add_argument('--resume', metavar='RUN_DIR', default=None,
                         help='continue a run whose nodes were killed (or that was stopped), with '
                              'the options it was started with, up to its budget: the learner '
@@ -285,12 +296,15 @@ def build_plan(options: LaunchOptions, bin_dir: Path, cwd: Path,
     effective = {node: node_params(merged, node) for node in NODES}
     all_files = files + [run_dir / OVERRIDES_FILE]
     commands = []
+    suffix = f'.session{continuation.session}' if continuation.session > 1 else ''
     for node in NODES:
         argv = [str(bin_dir / node), '--ros-args']
         for path in all_files:
             argv += ['--params-file', str(path)]
-        suffix = f'.session{continuation.session}' if continuation.session > 1 else ''
         commands.append(NodeCommand(node, argv, run_dir / 'logs' / f'{node}{suffix}.log'))
+    if options.console:  # not a node of the study's graph: its own parameters only
+        argv = [str(bin_dir / CONSOLE), '--ros-args', '-p', f'port:={int(options.console_port)}']
+        commands.append(NodeCommand(CONSOLE, argv, run_dir / 'logs' / f'{CONSOLE}{suffix}.log'))
     return LaunchPlan(options=options, run_dir=run_dir, seed=seed, params_files=all_files,
                       overrides=overrides, effective=effective, commands=commands,
                       continuation=continuation)

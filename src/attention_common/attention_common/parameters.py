@@ -1,4 +1,4 @@
-"""Declare a node's parameters from one table (or one dataclass), with types checked at start-up."""
+"""Declare a node's parameters from one table (or one dataclass), types checked at start-up."""
 
 import ast
 import dataclasses

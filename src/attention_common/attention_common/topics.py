@@ -20,5 +20,6 @@ SALIENCY = 'saliency'                # sensor_msgs/Image rgb8, same stamp as its
 SALIENCY_MASK = 'saliency_mask'      # sensor_msgs/Image mono8 debug view of the mask
 
 METRICS = 'metrics'                  # diagnostic_msgs/DiagnosticArray, learner metrics
-FEEDBACK_LOGGED = 'feedback_logged'  # diagnostic_msgs/DiagnosticArray, one per line the learner
-#                                      logged (feedback or utterance): the trainer console's receipt
+# diagnostic_msgs/DiagnosticArray, one per feedback or utterance line the learner logged (the
+# trainer console's receipt: it names the message by its publisher's sequence number)
+FEEDBACK_LOGGED = 'feedback_logged'

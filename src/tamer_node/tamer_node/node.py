@@ -210,7 +210,7 @@ RECEIPT_TEXT_CHARS = 200
 
 
 def _identity(info) -> dict:
-    """The DDS identity of a received message (rclpy's MessageInfo), for the log."""
+    """Return the DDS identity of a received message (rclpy's MessageInfo), for the log."""
     return {'publication_seq': info.get('publication_sequence_number'),
             'source_time_ns': info.get('source_timestamp')}
 

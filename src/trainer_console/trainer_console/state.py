@@ -84,7 +84,7 @@ class ConsoleState:
         return None
 
     def on_utterance(self, text: str) -> None:
-        """An utterance was said (by anyone): what it names is what the saliency image keeps."""
+        """Take an utterance said by anyone: what it names is what the saliency image keeps."""
         named = list(self.ground(text))
         with self._lock:
             self.last_utterance, self.named = text, named
