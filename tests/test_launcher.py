@@ -227,6 +227,8 @@ def test_realtime_without_the_synthetic_trainer(tmp_path):
     assert summary['console_url'] == f'http://127.0.0.1:{port}/'
     assert f'Trainer console: http://127.0.0.1:{port}/' in result.stderr
     assert summary['exit_codes'] == dict.fromkeys(NODES + ('trainer_console',), 0)
+    # ROS_DOMAIN_ID was set (this test session's): the launcher joined it instead of its own.
+    assert summary['domain_id'] == int(os.environ['ROS_DOMAIN_ID'])
     params = yaml.safe_load((run_dir / 'params.yaml').read_text())
     assert params['env_node']['ros__parameters']['rate_hz'] == 15.0
     assert params['feedback_node']['ros__parameters']['synthetic'] is False

@@ -238,6 +238,19 @@ def test_a_frozen_encoder_learns_on_the_features_the_actor_computed(agents, fine
     assert wait_until(lambda: agent.worker.stats()['train/l2_updates'] >= 1, 10.0)
 
 
+def test_a_feedback_is_never_written_behind_a_checkpoint(agents, tmp_path):
+    agent = agents()
+    release = threading.Event()
+    agent.checkpoint_disk.submit(lambda: release.wait(30))  # a checkpoint that takes forever
+    try:
+        play(agent, 2)
+        agent.on_feedback(1.0, 'stamped', stamp(1))
+        assert wait_until(lambda: (tmp_path / 'run' / FEEDBACK_LOG).exists()
+                          and len(log_lines(tmp_path / 'run')) == 1, 5.0)
+    finally:
+        release.set()
+
+
 # Acting and training run apart.
 def test_acting_never_waits_for_training_or_disk(agents):
     agent = agents()

@@ -15,10 +15,12 @@ import urllib.error
 import urllib.request
 
 from attention_common import qos, topics
+from attention_common.image_codec import image_to_numpy
 from cdp import Browser, CHROMIUM
 from diagnostic_msgs.msg import DiagnosticArray
 from harness import wait_until
 import pytest
+from sensor_msgs.msg import Image
 from trainer_console.config import ConsoleConfig
 from trainer_console.state import ConsoleState
 from trainer_console.web import ConsoleServer, Frames
@@ -47,6 +49,7 @@ needs_chromium = pytest.mark.skipif(
 def test_a_person_teaches_from_the_browser(probe, start_node, tmp_path):
     run_dir = tmp_path / 'run'
     statuses = probe.subscribe(DiagnosticArray, topics.ENV_STATUS, qos.STEP_DATA)
+    masks = probe.subscribe(Image, topics.SALIENCY_MASK, qos.FRAMES)
     tamer = start_node('tamer_node', {'run_dir': str(run_dir), 'credit': 'window',
                                       'metrics_period_s': 0.3})
     start_node('saliency_node', {})
@@ -64,11 +67,13 @@ def test_a_person_teaches_from_the_browser(probe, start_node, tmp_path):
             assert await page.wait_for("document.getElementById('connection').textContent"
                                        " === 'connected'")
             assert await page.wait_for("document.getElementById('frame').naturalWidth === 160")
-            # Three judgements from the keyboard: +, ArrowUp, -.
-            for key in ('+', 'ArrowUp', '-'):
+            shown = await page.evaluate('window.framesShown.F')
+            assert await page.wait_for(f'window.framesShown.F >= {shown + 5}')  # it plays
+            # Seven judgements from the keyboard: five +, then ArrowUp and -.
+            for key in ('+',) * 5 + ('ArrowUp', '-'):
                 await page.press(key)
             assert await page.wait_for(
-                "document.getElementById('confirmed').textContent === '3'"), (
+                "document.getElementById('confirmed').textContent === '7'"), (
                 await page.evaluate('document.body.innerText'))
             # Words: typed into the box, sent with Enter; a '+' typed there is not feedback.
             await page.evaluate("document.getElementById('utterance').focus()")
@@ -80,7 +85,7 @@ def test_a_person_teaches_from_the_browser(probe, start_node, tmp_path):
                 "document.getElementById('named').textContent.includes('ladder')")
             assert await page.wait_for(
                 "document.getElementById('saliency').naturalWidth === 160")
-            assert await page.evaluate("document.getElementById('given').textContent") == '3'
+            assert await page.evaluate("document.getElementById('given').textContent") == '7'
             # Pause stops the real-time env; resume starts it again.
             await page.evaluate("document.getElementById('pause').click()")
             assert await page.wait_for("document.getElementById('pause').textContent"
@@ -94,7 +99,10 @@ def test_a_person_teaches_from_the_browser(probe, start_node, tmp_path):
     lines = log_lines(run_dir)
     feedback = [line for line in lines if line['kind'] == 'feedback']
     assert [(line['h'], line['source'], line['publication_seq']) for line in feedback] == [
-        (1.0, 'plain', 1), (1.0, 'plain', 2), (-1.0, 'plain', 3)]
+        (1.0, 'plain', 1), (1.0, 'plain', 2), (1.0, 'plain', 3), (1.0, 'plain', 4),
+        (1.0, 'plain', 5), (1.0, 'plain', 6), (-1.0, 'plain', 7)]
+    # The utterance made saliency images whose masks keep something (the ladders, the agent).
+    assert any(image_to_numpy(mask).any() for mask in masks.snapshot())
     assert [line['text'] for line in lines if line['kind'] == 'utterance'] == [
         'climb down the ladder +']
     assert wait_until(lambda: 'the person gave utterance' in console.log_text(), 5.0)
@@ -138,14 +146,14 @@ def test_a_press_is_confirmed_only_by_the_receipt_that_names_it():
 
 @pytest.mark.topics
 def test_teach_from_a_shell_reaches_the_learner_every_time(start_node, tmp_path):
-    """Each ``teach`` is a fresh process that exits 0 only once the learner logged it."""
+    """The README's way from a shell: 20 fresh ``teach`` processes, each logged, all 20."""
     import subprocess
     from harness import BIN
     run_dir = tmp_path / 'run'
     tamer = start_node('tamer_node', {'run_dir': str(run_dir), 'credit': 'window'})
     start_node('feedback_node', {'synthetic': False})  # a second subscriber, as in person mode
     assert tamer.wait_for_log('ready', STARTUP_S)
-    given = ['good', 'bad', '+', '-', '0.5', 'good', 'bad', 'good']
+    given = ['good', 'bad', '+', '-', '0.5', 'good', 'bad', 'good', 'bad', 'good'] * 2
     for what in given:
         result = subprocess.run([str(BIN / 'teach'), what], capture_output=True, text=True,
                                 timeout=60)
@@ -158,6 +166,6 @@ def test_teach_from_a_shell_reaches_the_learner_every_time(start_node, tmp_path)
                           timeout=60).returncode == 2  # outside [-1, 1]: nothing sent
     lines = log_lines(run_dir)
     assert [line['h'] for line in lines if line['kind'] == 'feedback'] == [
-        1.0, -1.0, 1.0, -1.0, 0.5, 1.0, -1.0, 1.0]
+        1.0, -1.0, 1.0, -1.0, 0.5, 1.0, -1.0, 1.0, -1.0, 1.0] * 2  # all 20, in order
     assert [line['text'] for line in lines if line['kind'] == 'utterance'] == [
         'jump over the skull']

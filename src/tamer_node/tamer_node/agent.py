@@ -96,8 +96,12 @@ class TamerAgent:
         self.feedback_log = FeedbackLog(self.run_dir / FEEDBACK_LOG)
         self.metrics_csv = MetricsCsv(self.run_dir / METRICS_CSV)
         self.disk = DiskWriter(self.journal, lambda text: self._log('error', text))
+        # Checkpoints (torch.save + fsync, 50-150 ms) on a thread of their own: a person's
+        # feedback is never written behind one (a key press waited 160 ms for it).
+        self.checkpoint_disk = DiskWriter(self.journal, lambda text: self._log('error', text),
+                                          name='tamer-checkpoint')
         self.worker = LearnerWorker(config, self.learner, self.buffer, self.history, self.slot,
-                                    self.journal, self.disk, self.run_dir, self._log)
+                                    self.journal, self.checkpoint_disk, self.run_dir, self._log)
         # Every key exists from the start, so readers never see the dict change size.
         self.counters = collections.Counter(dict.fromkeys((
             'act/count', 'act/fallback_observation', 'drop/observation', 'drop/saliency',
@@ -139,6 +143,7 @@ class TamerAgent:
         counters = self.worker.stats()
         self._updates_at_start = (counters['train/updates'], counters['train/minibatch_updates'])
         self.disk.start()
+        self.checkpoint_disk.start()
         self.worker.start()
         self._started = True
         return replayed
@@ -148,7 +153,8 @@ class TamerAgent:
         if self._started:
             self.disk.flush()   # every feedback received is logged and with the learner,
             self.worker.stop()  # which uses it all and queues a last checkpoint,
-            self.disk.stop()    # which is written before the files close
+            self.checkpoint_disk.stop()  # which is written before the files close
+            self.disk.stop()
         self.journal.close()
         self.feedback_log.close()
 
@@ -414,7 +420,7 @@ class TamerAgent:
         values['feedback/received'] = self._seq
         values['act/version'] = self.actor.version
         values['train/alpha'] = self.learner.alpha
-        values['disk/errors'] = self.disk.errors
+        values['disk/errors'] = self.disk.errors + self.checkpoint_disk.errors
         now, updates = time.monotonic(), values['train/updates']
         last_time, last_updates = self._last_rate
         values['train/updates_per_s'] = (updates - last_updates) / max(now - last_time, 1e-9)

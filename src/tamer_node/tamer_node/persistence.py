@@ -264,8 +264,8 @@ class DiskWriter(threading.Thread):
     """The thread that does the run's slow disk work: journal drains, checkpoints, CSV rows."""
 
     def __init__(self, journal: StepJournal, on_error: Callable[[str], None],
-                 drain_period_s: float = 0.2):
-        super().__init__(name='tamer-disk', daemon=True)
+                 drain_period_s: float = 0.2, name: str = 'tamer-disk'):
+        super().__init__(name=name, daemon=True)
         self._journal = journal
         self._jobs: 'queue.Queue[Optional[Callable[[], None]]]' = queue.Queue()
         self._on_error = on_error

@@ -21,7 +21,8 @@ Four kinds of thread touch the agent; each owns its objects and hands over throu
   (the update count) in the ``SnapshotSlot``; the acting copy loads a newer version just before
   it acts. The trained model's train/eval mode is never flipped.
 - Disk (``persistence.DiskWriter``): one FIFO of jobs: the feedback log, journal drains,
-  checkpoint files (small: the buffer's images are in the journal), metrics rows.
+  metrics rows. Checkpoint files (small: the buffer's images are in the journal, but written
+  with an fsync) go to a second DiskWriter, so a feedback line never waits behind one.
 - Metrics (a timer callback): reads counters under the learner's small lock.
 
 Pairing with saliency images: the steps a feedback credits may still wait for their saliency

@@ -36,6 +36,8 @@ from trainer_console.web import ConsoleServer, Frames
 
 MAX_PIXELS = 1024 * 1024
 """Larger images are not shown (and never decoded)."""
+MATCH_WAIT_S = 3.0
+"""Longest wait, before publishing, for every subscriber the graph knows to be matched."""
 
 
 class ConsoleNode(Node):
@@ -71,6 +73,7 @@ class ConsoleNode(Node):
         self.create_subscription(DiagnosticArray, topics.FEEDBACK_LOGGED, self._on_receipt,
                                  qos.HUMAN)
         self._env_parameters = AsyncParameterClient(self, self.config.env_node)
+        self.create_timer(1.0, self._look_for_listeners)
         token = None
         if not self.config.loopback:
             token = self.config.token or secrets.token_urlsafe(16)
@@ -89,8 +92,8 @@ class ConsoleNode(Node):
     # What the console hears.
     def _on_image(self, kind: str, msg: Image) -> None:
         now = time.monotonic()
-        if now - self._encoded_at[kind] < 1.0 / self.config.frame_rate_hz:
-            return
+        if now - self._encoded_at[kind] < 0.5 / self.config.frame_rate_hz:
+            return  # (half the period: a frame a little early is still shown at the env's rate)
         if msg.encoding != 'rgb8' or msg.height * msg.width > MAX_PIXELS:
             self.get_logger().warning(f'{kind} not shown: {msg.encoding} {msg.width}x'
                                       f'{msg.height}', throttle_duration_sec=10.0)
@@ -136,6 +139,9 @@ class ConsoleNode(Node):
                 continue
             self.state.on_receipt(status.name, seq, source, values.get('status', 'ok'))
 
+    def _look_for_listeners(self) -> None:
+        self.state.listeners = {kind: self.listeners(kind) for kind in ('feedback', 'utterance')}
+
     # What the person gives (called on the web server's worker threads).
     def on_command(self, command: dict) -> dict:
         kind = command.get('type')
@@ -157,16 +163,32 @@ class ConsoleNode(Node):
             return self._pause(kind == 'pause')
         return {'ok': False, 'error': f'unknown command {kind!r}'}
 
+    def listeners(self, kind: str) -> list:
+        """Return the nodes the graph knows to subscribe to ``kind``'s topic (not this one)."""
+        topic = self.resolve_topic_name(topics.FEEDBACK if kind == 'feedback' else
+                                        topics.UTTERANCE)
+        return sorted(info.node_name for info in self.get_subscriptions_info_by_topic(topic)
+                      if info.node_name != self.get_name())
+
     def _give(self, kind: str, value, msg) -> dict:
         publisher = self._feedback_pub if kind == 'feedback' else self._utterance_pub
+        # A volatile topic gives a message only to the readers matched when it is published:
+        # wait until every subscriber the graph knows of (the saliency node too, which sends
+        # no receipt) is matched with this publisher.
+        deadline = time.monotonic() + MATCH_WAIT_S
+        while (publisher.get_subscription_count() < len(self.listeners(kind))
+               and time.monotonic() < deadline):
+            time.sleep(0.01)
         with self._publish_lock:
             sent_ns = time.time_ns()
             publisher.publish(msg)
             self._published[kind] += 1
             seq = self._published[kind]  # DDS numbers this publisher's messages 1, 2, 3, ...
             self.state.sent(kind, value, seq, sent_ns)
-        self.get_logger().info(f'the person gave {kind} {value!r} (#{seq})')
-        return {'ok': True, 'seq': seq}
+        listeners = self.listeners(kind)
+        self.get_logger().info(f'the person gave {kind} {value!r} (#{seq}) to '
+                               f'{", ".join(listeners) or "nobody"}')
+        return {'ok': True, 'seq': seq, 'listeners': listeners}
 
     def _pause(self, paused: bool) -> dict:
         if not self._env_parameters.services_are_ready():

@@ -55,6 +55,8 @@ class ConsoleState:
     metrics: dict = field(default_factory=dict)
     furthest: int = -1
     paused: bool = False
+    listeners: Dict[str, List[str]] = field(default_factory=dict)
+    """kind -> the nodes that subscribe to its topic (from the ROS graph)."""
     history: Deque[tuple] = field(default_factory=lambda: collections.deque(
         maxlen=HISTORY_POINTS))
     _lock: threading.Lock = field(default_factory=threading.Lock)
@@ -125,6 +127,7 @@ class ConsoleState:
                 'step': self.status.get('agent_step'), 'episode': self.status.get('episode'),
                 'lives': self.status.get('lives'), 'has_key': self.status.get('has_key'),
                 'furthest': self.furthest, 'paused': self.paused,
+                'listeners': dict(self.listeners),
                 'learner': {key: metrics.get(key) for key in (
                     'feedback/received', 'feedback/logged', 'feedback/count', 'train/loss',
                     'train/updates', 'model/version')},

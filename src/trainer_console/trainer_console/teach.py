@@ -27,6 +27,7 @@ from std_msgs.msg import Float32, String
 from trainer_console.state import ConsoleState
 
 LEARNER = 'tamer_node'
+MATCH_WAIT_S = 3.0
 WORDS = {'good': 1.0, '+': 1.0, 'bad': -1.0, '-': -1.0}
 
 
@@ -93,7 +94,13 @@ def main(argv=None) -> int:
                   ' (is the graph running, in this ROS_DOMAIN_ID?): nothing sent',
                   file=sys.stderr)
             return 1
-        spin_until(lambda: publisher.get_subscription_count() > 0)
+        # Volatile: only readers matched now get it. Wait for every subscriber the graph knows
+        # (the saliency node sends no receipt), at most MATCH_WAIT_S.
+        resolved = node.resolve_topic_name(topic)
+        match_deadline = time.monotonic() + MATCH_WAIT_S
+        while (publisher.get_subscription_count() < len(node.get_subscriptions_info_by_topic(
+                resolved)) and time.monotonic() < match_deadline):
+            executor.spin_once(timeout_sec=0.01)
         sent_ns = time.time_ns()
         publisher.publish(Float32(data=value) if kind == 'feedback' else String(data=value))
         press = state.sent(kind, value, 1, sent_ns)  # this publisher's first and only message

@@ -2,10 +2,10 @@
 The console's web server (aiohttp, on a thread of its own with its own asyncio loop).
 
 ``GET /`` is the page, ``/static/*`` its script, ``GET /ws`` a websocket: the server sends
-frames as binary messages (one byte, ``F`` frame or ``S`` saliency image, then the JPEG) at most
-``frame_rate_hz``, and the state as JSON text 4 times a second; the page sends JSON commands
-(``feedback``, ``utterance``, ``pause``, ``resume``), handed to ``on_command``. With a token,
-every request must carry ``?token=...``.
+frames as binary messages (one byte, ``F`` frame or ``S`` saliency image, then the JPEG) as
+they come, at most 2 x ``frame_rate_hz``, and the state as JSON text 4 times a second; the page
+sends JSON commands (``feedback``, ``utterance``, ``pause``, ``resume``), handed to
+``on_command``. With a token, every request must carry ``?token=...``.
 """
 
 import asyncio
@@ -53,7 +53,7 @@ class ConsoleServer:
                  token: Optional[str] = None, log: Callable[[str], None] = print):
         self.host, self.port = host, port
         self.frames, self.snapshot, self.on_command = frames, snapshot, on_command
-        self.frame_period = 1.0 / frame_rate_hz
+        self.poll_period = 0.5 / frame_rate_hz  # new frames go out within half a period
         self.token = token
         self._log = log
         self._loop = asyncio.new_event_loop()
@@ -128,7 +128,7 @@ class ConsoleServer:
                 if now - last_state >= STATE_PERIOD_S:
                     last_state = now
                     await socket.send_str(json.dumps(dict(self.snapshot(), type='state')))
-                await asyncio.sleep(self.frame_period)
+                await asyncio.sleep(self.poll_period)
         except (ConnectionResetError, asyncio.CancelledError):
             pass
         except Exception as error:  # a broken client must not stop the others

@@ -5,6 +5,7 @@ const $ = (id) => document.getElementById(id);
 let socket = null;
 let nextId = 1;
 const urls = {F: null, S: null};
+window.framesShown = {F: 0, S: 0};  // images shown so far, by kind (tests and the benchmark read it)
 
 function connect() {
   const query = token ? `?token=${encodeURIComponent(token)}` : '';
@@ -30,6 +31,7 @@ function showImage(buffer) {
   img.src = url;
   if (urls[kind]) { URL.revokeObjectURL(urls[kind]); }
   urls[kind] = url;
+  window.framesShown[kind] += 1;
 }
 
 function fmt(value, digits) {
@@ -43,6 +45,8 @@ function showState(s) {
   $('confirmed_utterances').textContent = s.confirmed.utterance;
   $('waiting').textContent = s.unconfirmed.length ? s.unconfirmed.map((p) => `${p.kind} #${p.seq}`).join(', ') : 'nothing';
   $('said').textContent = s.utterance || '-';
+  const heard = (kind) => (s.listeners[kind] || []).join(', ') || 'nobody yet';
+  $('listeners').textContent = `${heard('feedback')} / ${heard('utterance')}`;
   $('named').textContent = s.named.length ? s.named.join(', ') : '-';
   const l = s.learner;
   $('learner_feedback').textContent = `${fmt(l['feedback/received'], 0)}, ${fmt(l['feedback/count'], 0)}`;
