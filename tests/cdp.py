@@ -36,6 +36,7 @@ class Browser:
 
     async def __aenter__(self) -> 'Browser':
         self.profile_dir.mkdir(parents=True, exist_ok=True)
+        (self.profile_dir / 'DevToolsActivePort').unlink(missing_ok=True)  # an earlier one's
         self.process = subprocess.Popen(
             [CHROMIUM, *QUIET, f'--user-data-dir={self.profile_dir}', self.url],
             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)

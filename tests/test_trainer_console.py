@@ -61,12 +61,16 @@ def test_a_person_teaches_from_the_browser(probe, start_node, tmp_path):
     env = start_node('env_node', {'rate_hz': 15.0, 'warmup_steps': 0,
                                   'wait_observation_subscribers': 3})
     assert statuses.wait_count(5, STARTUP_S), env.log_text()[-2000:]
+    assert tamer.wait_for_log('ready', STARTUP_S), tamer.log_text()[-2000:]  # a person waits too
 
     async def session():
         async with Browser(url, tmp_path / 'chromium') as page:
             assert await page.wait_for("document.getElementById('connection').textContent"
                                        " === 'connected'")
             assert await page.wait_for("document.getElementById('frame').naturalWidth === 160")
+            assert await page.wait_for("document.getElementById('listeners').textContent"
+                                       ".startsWith('tamer_node')"), (  # the page says who hears
+                await page.evaluate('document.body.innerText'))
             shown = await page.evaluate('window.framesShown.F')
             assert await page.wait_for(f'window.framesShown.F >= {shown + 5}')  # it plays
             # Seven judgements from the keyboard: five +, then ArrowUp and -.
@@ -169,3 +173,34 @@ def test_teach_from_a_shell_reaches_the_learner_every_time(start_node, tmp_path)
         1.0, -1.0, 1.0, -1.0, 0.5, 1.0, -1.0, 1.0, -1.0, 1.0] * 2  # all 20, in order
     assert [line['text'] for line in lines if line['kind'] == 'utterance'] == [
         'jump over the skull']
+
+
+@pytest.mark.topics
+def test_nothing_is_sent_into_the_void_when_nobody_listens(start_node):
+    """Without a learner a press is refused with a reason, not published and lost."""
+    import asyncio as aio
+    import aiohttp
+    port = free_port()
+    console = start_node('trainer_console', {'port': port})
+    assert console.wait_for_log('trainer console at', STARTUP_S)
+
+    async def press():
+        async with aiohttp.ClientSession() as session:
+            async with session.ws_connect(f'http://127.0.0.1:{port}/ws') as socket:
+                await socket.send_json({'type': 'feedback', 'h': 1, 'id': 1})
+                while True:
+                    message = await socket.receive_json(timeout=30)
+                    if message.get('type') == 'reply':
+                        return message
+    reply = aio.run(press())
+    assert reply['ok'] is False and 'nobody listens to feedback' in reply['error']
+    assert 'not sent: nobody subscribes' in console.log_text()
+    assert console.stop(signal.SIGINT) == 0
+
+
+def test_the_state_is_valid_json_when_the_learner_has_no_loss_yet():
+    state = ConsoleState()
+    state.on_metrics({'train/loss': float('nan'), 'train/updates': 0.0,
+                      'feedback/received': float('inf')})
+    text = json.dumps(state.snapshot(), allow_nan=False)  # what the page's JSON.parse reads
+    assert json.loads(text)['learner']['train/loss'] is None

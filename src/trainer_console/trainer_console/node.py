@@ -176,9 +176,14 @@ class ConsoleNode(Node):
         # wait until every subscriber the graph knows of (the saliency node too, which sends
         # no receipt) is matched with this publisher.
         deadline = time.monotonic() + MATCH_WAIT_S
-        while (publisher.get_subscription_count() < len(self.listeners(kind))
+        while (publisher.get_subscription_count() < max(1, len(self.listeners(kind)))
                and time.monotonic() < deadline):
             time.sleep(0.01)
+        if not self.listeners(kind) or not publisher.get_subscription_count():
+            self.get_logger().warning(f'{kind} {value!r} not sent: nobody subscribes to it yet '
+                                      '(is tamer_node running?)')
+            return {'ok': False, 'error': f'nobody listens to {kind} yet (is the learner '
+                                          'running?): not sent'}
         with self._publish_lock:
             sent_ns = time.time_ns()
             publisher.publish(msg)

@@ -10,6 +10,7 @@ and its source time, which both the console and the receipt know.
 
 import collections
 from dataclasses import dataclass, field
+import math
 import threading
 import time
 from typing import Callable, Deque, Dict, List, Optional, Sequence
@@ -102,8 +103,11 @@ class ConsoleState:
         self._point(now)
 
     def on_metrics(self, values: dict) -> None:
+        """Take the learner's metrics; NaN and inf become None (JSON has neither)."""
+        finite = {key: (value if math.isfinite(value) else None)
+                  for key, value in values.items()}
         with self._lock:
-            self.metrics = dict(values)
+            self.metrics = finite
 
     def _point(self, now: Optional[float]) -> None:
         now = time.monotonic() if now is None else now

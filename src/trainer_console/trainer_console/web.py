@@ -127,7 +127,8 @@ class ConsoleServer:
                 now = self._loop.time()
                 if now - last_state >= STATE_PERIOD_S:
                     last_state = now
-                    await socket.send_str(json.dumps(dict(self.snapshot(), type='state')))
+                    await socket.send_str(json.dumps(dict(self.snapshot(), type='state'),
+                                                     allow_nan=False))
                 await asyncio.sleep(self.poll_period)
         except (ConnectionResetError, asyncio.CancelledError):
             pass

@@ -18,7 +18,8 @@ function connect() {
   };
   socket.onmessage = (event) => {
     if (event.data instanceof ArrayBuffer) { showImage(event.data); return; }
-    const message = JSON.parse(event.data);
+    let message;
+    try { message = JSON.parse(event.data); } catch (error) { note(`unreadable state: ${error}`, 'bad'); return; }
     if (message.type === 'state') { showState(message); }
     if (message.type === 'reply' && !message.ok) { note(`not sent: ${message.error}`, 'bad'); }
   };
