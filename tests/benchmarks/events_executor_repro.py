@@ -2,10 +2,11 @@
 A minimal reproduction: what rclpy's experimental EventsExecutor runs here (rclpy 7.1.6, PyPI).
 
 Each case runs in a fresh process with a deadline (a hang is reported, not waited for): one
-node, one timer or one subscription fed from a thread, spun by ``spin()`` or by
-``spin_once`` in a loop, under SingleThreadedExecutor and EventsExecutor, in the main thread.
-It prints how many callbacks ran in 2 s, or how the process ended (a 10 Hz timer should give about 20; the subscription
-is sent 20 messages).
+node, one timer or one subscription (its callback with or without rclpy's MessageInfo
+argument) fed from a thread, spun by ``spin()`` or by ``spin_once`` in a loop, under
+SingleThreadedExecutor and EventsExecutor, in the main thread. It prints how many callbacks ran
+in 2 s, or how the process ended (a 10 Hz timer should give about 20; the subscription is sent
+20 messages).
 
     .venv/bin/python tests/benchmarks/events_executor_repro.py
 """
@@ -14,7 +15,7 @@ import os
 import subprocess
 import sys
 
-CASE = r'''
+CASE = r"""
 import os, sys, threading, time
 import rclpy
 from rclpy.executors import SingleThreadedExecutor
@@ -50,7 +51,7 @@ if spin == 'spin':
 else:
     while True:
         executor.spin_once(timeout_sec=0.05)
-'''
+"""
 
 
 def main() -> int:
