@@ -10,6 +10,7 @@ import math
 import re
 import signal
 
+from attention_bringup.processes import resident_memory_kb
 from attention_common import qos, topics
 from attention_common.image_codec import numpy_to_image
 from attention_common.joy_actions import action_to_joy
@@ -285,11 +286,7 @@ def test_the_teacher_survives_bad_env_status_among_a_real_envs(probe, start_node
 
 
 def resident_mb(pid):
-    with open(f'/proc/{pid}/status') as status:
-        for line in status:
-            if line.startswith('VmRSS:'):
-                return int(line.split()[1]) / 1024
-    raise AssertionError('no VmRSS')
+    return resident_memory_kb(pid)['VmRSS'] / 1024
 
 
 @pytest.mark.parametrize('node_name', ['saliency_node', 'tamer_node'])

@@ -21,6 +21,7 @@ import tempfile
 import time
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from attention_bringup.processes import cpu_seconds  # noqa: E402
 from attention_common.isolation import isolated_environ, reserved_domain  # noqa: E402
 
 PAGE_HZ_WINDOW_S = 10.0
@@ -30,12 +31,6 @@ def free_port() -> int:
     with socket.socket() as probe:
         probe.bind(('127.0.0.1', 0))
         return probe.getsockname()[1]
-
-
-def cpu_seconds(pid: int) -> float:
-    with open(f'/proc/{pid}/stat') as stat:
-        fields = stat.read().rsplit(')', 1)[1].split()
-    return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
 
 
 def log_lines(path: Path) -> int:

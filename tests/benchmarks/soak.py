@@ -20,20 +20,15 @@ import sys
 import tempfile
 import time
 
+from attention_bringup.processes import resident_memory_kb
 import numpy as np
 
 PROCESSES = ('attention_train', 'env_node', 'feedback_node', 'saliency_node', 'tamer_node')
 
 
 def resident_mb(pid: int):
-    try:
-        with open(f'/proc/{pid}/status') as status:
-            for line in status:
-                if line.startswith('VmRSS:'):
-                    return int(line.split()[1]) / 1024
-    except OSError:
-        return None
-    return None
+    kb = resident_memory_kb(pid).get('VmRSS')
+    return None if kb is None else kb / 1024
 
 
 def last_step(progress: Path) -> int:

@@ -158,20 +158,12 @@ def read_rows_for_plot(path: Path, count: int, most: int = PLOT_ROWS) -> List[di
         return []
     stride = max(1, math.ceil(count / most))
     rows, furthest = [], None
-    with open(path, newline='') as file:
-        for index, row in enumerate(csv.DictReader(file)):
-            grew = row['furthest_position'] != furthest
-            furthest = row['furthest_position']
-            if index % stride == 0 or grew:
-                rows.append({key: _number(row[key]) for key in PLOT_COLUMNS})
+    for index, row in enumerate(read_progress_rows(path)):
+        grew = row['furthest_position'] != furthest
+        furthest = row['furthest_position']
+        if index % stride == 0 or grew:
+            rows.append({key: row[key] for key in PLOT_COLUMNS})
     return rows
-
-
-def _number(text: str) -> float:
-    try:
-        return float(text)
-    except ValueError:
-        return math.nan
 
 
 def plot_learning_curve(rows: Sequence[dict], path: Path, title: str) -> bool:

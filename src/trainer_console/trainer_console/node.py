@@ -31,13 +31,12 @@ from saliency_node.manifest import load_manifest
 from sensor_msgs.msg import Image
 from std_msgs.msg import Float32, String
 from trainer_console.config import ConsoleConfig
+from trainer_console.matching import subscriber_names, wait_for_all_matched
 from trainer_console.state import ConsoleState
 from trainer_console.web import ConsoleServer, Frames
 
 MAX_PIXELS = 1024 * 1024
 """Larger images are not shown (and never decoded)."""
-MATCH_WAIT_S = 3.0
-"""Longest wait, before publishing, for every subscriber the graph knows to be matched."""
 
 
 class ConsoleNode(Node):
@@ -70,8 +69,8 @@ class ConsoleNode(Node):
                                  lambda msg: self.state.on_utterance(msg.data), qos.HUMAN)
         self.create_subscription(DiagnosticArray, topics.UTTERANCE_STAMPED,
                                  self._on_utterance_stamped, qos.HUMAN)
-        self.create_subscription(DiagnosticArray, topics.FEEDBACK_LOGGED, self._on_receipt,
-                                 qos.HUMAN)
+        self.create_subscription(DiagnosticArray, topics.FEEDBACK_LOGGED,
+                                 self.state.on_receipt_message, qos.HUMAN)
         self._env_parameters = AsyncParameterClient(self, self.config.env_node)
         self.create_timer(1.0, self._look_for_listeners)
         token = None
@@ -129,16 +128,6 @@ class ConsoleNode(Node):
         if msg.status:
             self.state.on_utterance(msg.status[0].message)
 
-    def _on_receipt(self, msg: DiagnosticArray) -> None:
-        for status in msg.status:
-            values = {kv.key: kv.value for kv in status.values}
-            try:
-                seq = int(values['publication_seq'])
-                source = int(values['source_time_ns'])
-            except (KeyError, ValueError):
-                continue
-            self.state.on_receipt(status.name, seq, source, values.get('status', 'ok'))
-
     def _look_for_listeners(self) -> None:
         self.state.listeners = {kind: self.listeners(kind) for kind in ('feedback', 'utterance')}
 
@@ -165,21 +154,12 @@ class ConsoleNode(Node):
 
     def listeners(self, kind: str) -> list:
         """Return the nodes the graph knows to subscribe to ``kind``'s topic (not this one)."""
-        topic = self.resolve_topic_name(topics.FEEDBACK if kind == 'feedback' else
-                                        topics.UTTERANCE)
-        return sorted(info.node_name for info in self.get_subscriptions_info_by_topic(topic)
-                      if info.node_name != self.get_name())
+        return subscriber_names(self, topics.FEEDBACK if kind == 'feedback' else topics.UTTERANCE)
 
     def _give(self, kind: str, value, msg) -> dict:
         publisher = self._feedback_pub if kind == 'feedback' else self._utterance_pub
-        # A volatile topic gives a message only to the readers matched when it is published:
-        # wait until every subscriber the graph knows of (the saliency node too, which sends
-        # no receipt) is matched with this publisher.
-        deadline = time.monotonic() + MATCH_WAIT_S
-        while (publisher.get_subscription_count() < max(1, len(self.listeners(kind)))
-               and time.monotonic() < deadline):
-            time.sleep(0.01)
-        if not self.listeners(kind) or not publisher.get_subscription_count():
+        wait_for_all_matched(self, publisher, time.sleep)
+        if not publisher.get_subscription_count():
             self.get_logger().warning(f'{kind} {value!r} not sent: nobody subscribes to it yet '
                                       '(is tamer_node running?)')
             return {'ok': False, 'error': f'nobody listens to {kind} yet (is the learner '

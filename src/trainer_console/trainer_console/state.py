@@ -86,6 +86,16 @@ class ConsoleState:
                     return press
         return None
 
+    def on_receipt_message(self, msg) -> None:
+        """Take a ``feedback_logged`` message (diagnostic_msgs/DiagnosticArray) of receipts."""
+        for status in msg.status:
+            values = {kv.key: kv.value for kv in status.values}
+            try:
+                seq, source = int(values['publication_seq']), int(values['source_time_ns'])
+            except (KeyError, ValueError):
+                continue  # a receipt without a DDS identity names nobody's press
+            self.on_receipt(status.name, seq, source, values.get('status', 'ok'))
+
     def on_utterance(self, text: str) -> None:
         """Take an utterance said by anyone: what it names is what the saliency image keeps."""
         named = list(self.ground(text))

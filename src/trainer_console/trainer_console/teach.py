@@ -24,10 +24,10 @@ from diagnostic_msgs.msg import DiagnosticArray
 import rclpy
 from rclpy.executors import SingleThreadedExecutor
 from std_msgs.msg import Float32, String
+from trainer_console.matching import subscriber_names, wait_for_all_matched
 from trainer_console.state import ConsoleState
 
 LEARNER = 'tamer_node'
-MATCH_WAIT_S = 3.0
 WORDS = {'good': 1.0, '+': 1.0, 'bad': -1.0, '-': -1.0}
 
 
@@ -53,8 +53,7 @@ def parse(argv):
 
 
 def learner_listens(node, topic: str) -> bool:
-    return any(info.node_name == LEARNER for info in node.get_subscriptions_info_by_topic(
-        node.resolve_topic_name(topic)))
+    return LEARNER in subscriber_names(node, topic)
 
 
 def main(argv=None) -> int:
@@ -66,15 +65,9 @@ def main(argv=None) -> int:
     executor.add_node(node)
     state = ConsoleState()
 
-    def on_receipt(msg):
-        for status in msg.status:
-            values = {kv.key: kv.value for kv in status.values}
-            if 'publication_seq' in values and 'source_time_ns' in values:
-                state.on_receipt(status.name, int(values['publication_seq']),
-                                 int(values['source_time_ns']), values.get('status', 'ok'))
-
     try:
-        node.create_subscription(DiagnosticArray, topics.FEEDBACK_LOGGED, on_receipt, qos.HUMAN)
+        node.create_subscription(DiagnosticArray, topics.FEEDBACK_LOGGED,
+                                 state.on_receipt_message, qos.HUMAN)
         topic = topics.FEEDBACK if kind == 'feedback' else topics.UTTERANCE
         publisher = node.create_publisher(Float32 if kind == 'feedback' else String, topic,
                                           qos.HUMAN)
@@ -94,13 +87,7 @@ def main(argv=None) -> int:
                   ' (is the graph running, in this ROS_DOMAIN_ID?): nothing sent',
                   file=sys.stderr)
             return 1
-        # Volatile: only readers matched now get it. Wait for every subscriber the graph knows
-        # (the saliency node sends no receipt), at most MATCH_WAIT_S.
-        resolved = node.resolve_topic_name(topic)
-        match_deadline = time.monotonic() + MATCH_WAIT_S
-        while (publisher.get_subscription_count() < len(node.get_subscriptions_info_by_topic(
-                resolved)) and time.monotonic() < match_deadline):
-            executor.spin_once(timeout_sec=0.01)
+        wait_for_all_matched(node, publisher, lambda s: executor.spin_once(timeout_sec=s))
         sent_ns = time.time_ns()
         publisher.publish(Float32(data=value) if kind == 'feedback' else String(data=value))
         press = state.sent(kind, value, 1, sent_ns)  # this publisher's first and only message
