@@ -15,6 +15,8 @@ a clear error line and is counted. ``synthetic`` can be switched at run time
 """
 
 
+import collections
+
 from attention_common import qos, topics
 from attention_common.node_main import run_node, StartupError
 from attention_common.parameters import declare_parameters
@@ -33,6 +35,9 @@ from rclpy.node import Node
 from std_msgs.msg import Float32, String
 
 HARDWARE_ID = 'synthetic_trainer'
+HELD_FEEDBACK = 100_000
+"""Judgements held while nobody subscribes to the feedback yet (start-up), at most."""
+HELD_CHECK_S = 0.05
 
 # name: (default, description). Floats accept an integer too (utterance_interval:=0).
 PARAMETERS = {
@@ -111,6 +116,8 @@ class FeedbackNode(Node):
         self.add_on_set_parameters_callback(self._on_set_parameters)
         steady = Clock(clock_type=ClockType.STEADY_TIME)
         self.create_timer(summary_period, self._log_summary, clock=steady)
+        self._unsent = collections.deque(maxlen=HELD_FEEDBACK)  # until the learner is matched
+        self.create_timer(HELD_CHECK_S, self._send_held, clock=steady)
         self._last_summary = None
         self.get_logger().info(f'feedback_node ready: {self._mode_text()}')
 
@@ -171,12 +178,29 @@ class FeedbackNode(Node):
 
     def _publish_feedback(self, stamp_ns: int, h: float, y: float, z: float) -> None:
         """feedback_stamped (unless it comes late, as a person's would), then plain feedback."""
-        if not (self._kind == 'teacher' and self._config.delayed):
-            msg_out = Vector3Stamped()
-            msg_out.header.stamp = ns_to_stamp(stamp_ns)
-            msg_out.vector.x, msg_out.vector.y, msg_out.vector.z = float(h), float(y), float(z)
-            self._feedback_stamped_pub.publish(msg_out)
-        self._feedback_pub.publish(Float32(data=float(h)))
+        self._unsent.append((stamp_ns, h, y, z))
+        self._send_held()
+
+    def _send_held(self) -> None:
+        """
+        Publish the held feedback once the learner's subscription is matched.
+
+        The topics are volatile: a message published before a reader matched never reaches it
+        (a 200-step run can end before discovery is done), so judgements wait here instead.
+        """
+        stamped = not (self._kind == 'teacher' and self._config.delayed)
+        publisher = self._feedback_stamped_pub if stamped else self._feedback_pub
+        if not publisher.get_subscription_count():
+            return
+        while self._unsent:
+            stamp_ns, h, y, z = self._unsent.popleft()
+            if stamped:
+                msg_out = Vector3Stamped()
+                msg_out.header.stamp = ns_to_stamp(stamp_ns)
+                msg_out.vector.x, msg_out.vector.y, msg_out.vector.z = (
+                    float(h), float(y), float(z))
+                self._feedback_stamped_pub.publish(msg_out)
+            self._feedback_pub.publish(Float32(data=float(h)))
 
     # -- the teacher --------------------------------------------------------------------------
 
