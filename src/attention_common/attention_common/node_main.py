@@ -8,11 +8,24 @@ is 1.
 """
 
 import sys
+import time
 from typing import Callable, Optional
 
 from attention_common.dds_memory import use_freed_payloads
 import rclpy
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+
+
+SHUTDOWN_GRACE_S = 0.5
+"""How long an error is given to turn out to be a shutdown in progress (the context ends)."""
+
+
+def _still_running() -> bool:
+    """Tell whether the context is still up a moment after an error (not a shutdown)."""
+    deadline = time.monotonic() + SHUTDOWN_GRACE_S
+    while rclpy.ok() and time.monotonic() < deadline:
+        time.sleep(0.01)
+    return rclpy.ok()
 
 
 class StartupError(RuntimeError):
@@ -36,10 +49,11 @@ def run_node(node_factory: Callable[[], object], args=None,
         sys.stderr.write(f'[startup error] {error}\n')
         return 1
     except Exception:
-        if rclpy.ok():
+        if _still_running():
             raise
-        # SIGINT / SIGTERM while the node was being built: rclpy has shut the context down, and
-        # creating a publisher or timer on it fails. That is stopping, not an error.
+        # SIGINT / SIGTERM while the node was being built, or while the executor was taking a
+        # message: rclpy shuts the context down meanwhile, and creating a publisher or taking
+        # from a subscription then fails. That is stopping, not an error.
     finally:
         if node is not None:
             node.destroy_node()
