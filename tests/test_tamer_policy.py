@@ -1,7 +1,7 @@
 """The acting policy: the thesis's argmax, and greedy with a margin on H clipped to [-1, 1]."""
 
+from tamer_node.acting import ActingModel
 from tamer_node.model import HModel
-from tamer_node.worker import ActingModel
 import torch
 
 

@@ -1,0 +1,250 @@
+"""
+The acting path: the greedy action for each step at once, on the actor's own copy of H.
+
+Owned by the acting thread (the ``observation``/``saliency`` callbacks, or a benchmark loop):
+it preprocesses the image, stores the step in the ``StepHistory``, picks the greedy action with
+its *own* copy of H (``ActingModel``, in eval mode for its whole life), queues journal records.
+With a frozen encoder it stores the image's features in the step's record (the learner trains on
+them). It takes only short locks (history, snapshot slot, the steps awaiting their saliency
+image) and never waits for training, sampling or disk I/O. The learner hands it weights through
+the ``SnapshotSlot``: the acting copy loads a newer version just before it acts.
+"""
+
+import collections
+import copy
+import threading
+import time
+from typing import Callable, Dict, List, Optional, Tuple
+
+from attention_common.feedback import FEEDBACK_RANGE
+from attention_common.stamps import NS_PER_S, StampGuard
+import numpy as np
+from tamer_node.config import TamerConfig
+from tamer_node.history import StepHistory
+from tamer_node.model import HModel, preprocess, to_input
+from tamer_node.persistence import KIND_ACTION, KIND_OBSERVATION, KIND_SALIENCY, StepJournal
+import torch
+
+
+class BadInput(ValueError):
+    """A message the agent cannot use; it was counted and dropped."""
+
+
+class SnapshotSlot:
+    """The newest weight snapshot and its version; the learner writes, the actor reads."""
+
+    def __init__(self):
+        self._lock = threading.Lock()
+        self._version = 0
+        self._state: Optional[Dict[str, torch.Tensor]] = None
+
+    def publish(self, version: int, state: Dict[str, torch.Tensor]) -> None:
+        with self._lock:
+            self._version, self._state = version, state
+
+    def newer_than(self, version: int):
+        """(version, state) if a newer snapshot exists, else None."""
+        with self._lock:
+            if self._state is None or self._version <= version:
+                return None
+            return self._version, self._state
+
+
+class ActingModel:
+    """
+    The actor's own copy of H: eval mode forever, refreshed from snapshots.
+
+    ``greedy_margin`` 0 is the thesis's policy: argmax_a H(s, a), ties to the lowest index.
+    Above 0, H is first clipped to the feedback range [-1, 1] and every action within the
+    margin of the best counts as tied; a tie is broken at random (seeded). Without it an
+    action the trainer never judged in a state, but punished in many others (UP, wrong almost
+    everywhere on the floor), is extrapolated below -1 there and never tried, while every
+    action tried sits at -1: an agent stood 3,000 steps at the foot of the left ladder trying
+    every action but UP (graph trial, seed 1006).
+    """
+
+    def __init__(self, model: HModel, greedy_margin: float = 0.0, seed: int = 0):
+        self.model = copy.deepcopy(model).eval()
+        self.model.requires_grad_(False)
+        self.version = 0
+        self.greedy_margin = float(greedy_margin)
+        self._rng = np.random.default_rng(seed)
+
+    def refresh(self, slot: SnapshotSlot) -> None:
+        newer = slot.newer_than(self.version)
+        if newer is not None:
+            self.version, state = newer
+            self.model.load_state_dict(state)
+
+    def predict(self, image: torch.Tensor) -> torch.Tensor:
+        with torch.inference_mode():
+            return self.model(to_input(image))[0]
+
+    def choose(self, h: torch.Tensor) -> int:
+        """Return the greedy action for one state's (18,) H values (see the class docstring)."""
+        if self.greedy_margin <= 0.0:
+            return int(torch.argmax(h))
+        clipped = h.clamp(-FEEDBACK_RANGE, FEEDBACK_RANGE)  # beyond: extrapolation
+        tied = torch.nonzero(clipped >= clipped.max() - self.greedy_margin).flatten()
+        return int(tied[self._rng.integers(len(tied))])
+
+    def greedy(self, image: torch.Tensor) -> int:
+        """argmax_a H(s, a): the greedy policy (``choose``)."""
+        return self.choose(self.predict(image))
+
+    def features(self, image: torch.Tensor) -> torch.Tensor:
+        """Return the (1120,) encoder features of a (105, 80) uint8 image (no_grad)."""
+        with torch.no_grad():
+            return self.model.features(to_input(image))[0]
+
+    def greedy_on_features(self, features: torch.Tensor) -> int:
+        """``greedy`` from the image's features (``features``): the same action."""
+        with torch.no_grad():
+            return self.choose(self.model.from_features(features.unsqueeze(0))[0])
+
+
+class ActingPath:
+    """Observations and saliency images in, actions out; the newest stamp and the session."""
+
+    def __init__(self, config: TamerConfig, actor: ActingModel, slot: SnapshotSlot,
+                 history: StepHistory, journal: StepJournal, worker,
+                 counters: collections.Counter, log: Callable[[str, str], None]):
+        """``worker``: told of each observation stamp (``tick``) and image (``wake``)."""
+        self.config = config
+        self.actor = actor
+        self.slot = slot
+        self.history = history
+        self.journal = journal
+        self.worker = worker
+        self.counters = counters
+        self._log = log
+        self._guard = StampGuard(int(round(config.max_stamp_jump_s * NS_PER_S)))
+        # input_image 'saliency': observations waiting for their saliency image (stamp ->
+        # monotonic arrival time); answered on the observation after saliency_timeout_s.
+        self._awaiting: 'collections.OrderedDict[int, float]' = (
+            collections.OrderedDict())
+        self._awaiting_lock = threading.Lock()
+        self.now: Optional[int] = None
+        """The newest observation stamp (what a plain feedback is stamped with)."""
+        self.act_seconds = collections.deque(maxlen=1000)
+        """The last 1000 acts' latencies."""
+
+    @property
+    def session(self) -> int:
+        """Return the run's session number (persistence.py): 1, then one more per resume."""
+        return self.history.session
+
+    def start_session(self, session: int) -> None:
+        self.history.start_session(session)
+        self.journal.session = session
+        with self._awaiting_lock:
+            self._awaiting.clear()
+        self.now = None
+
+    def on_observation(self, stamp: int, rgb: np.ndarray) -> Optional[int]:
+        """Store observation ``stamp``; return the greedy action if the agent acts on it."""
+        started = time.perf_counter()
+        image = self._preprocess('observation', rgb)
+        verdict = self._guard.check(stamp)
+        if verdict == 'implausible':
+            self.counters['drop/observation_stamp'] += 1
+            raise BadInput(f'observation dropped: its stamp {stamp / NS_PER_S:.3f}s is more '
+                           f'than {self.config.max_stamp_jump_s:g} s from the newest '
+                           f'({self._guard.newest / NS_PER_S:.3f}s)')
+        if verdict == 'restart':
+            self.counters['session/restarts'] += 1
+            self.start_session(self.session + 1)
+            self._log('warn', f'observation stamps started over at {stamp / NS_PER_S:.3f}s (a '
+                      f'new env): session {self.session} begins; feedback on earlier steps is '
+                      'kept in the log, not learned from')
+        self.now = stamp if self.now is None else max(self.now, stamp)
+        self.worker.tick(stamp)  # simulation time for the minibatch schedule
+        record = self.history.put_image('observation', stamp, image)
+        self.journal.append(KIND_OBSERVATION, stamp, image=image)
+        if self.config.input_image == 'saliency':
+            self.worker.wake()
+            if record.action is None and record.saliency is None:
+                with self._awaiting_lock:  # answered by on_saliency or act_overdue
+                    self._awaiting.setdefault(stamp, time.monotonic())
+                    while len(self._awaiting) > self.config.history_steps:
+                        self._awaiting.popitem(last=False)
+                return None
+        return self._act(record, started)
+
+    def on_saliency(self, stamp: int, rgb: np.ndarray) -> Optional[int]:
+        """Store saliency image ``stamp``; return the action if the agent acts on saliency."""
+        started = time.perf_counter()
+        image = self._preprocess('saliency', rgb)
+        if not self._guard.plausible(stamp):
+            self.counters['drop/saliency_stamp'] += 1
+            raise BadInput(f'saliency image dropped: its stamp {stamp / NS_PER_S:.3f}s is '
+                           f'more than {self.config.max_stamp_jump_s:g} s from the newest '
+                           'observation')
+        record = self.history.put_image('saliency', stamp, image)
+        self.journal.append(KIND_SALIENCY, stamp, image=image)
+        self.worker.wake()
+        if self.config.input_image != 'saliency':
+            return None
+        with self._awaiting_lock:
+            self._awaiting.pop(stamp, None)
+        if record.action is not None:
+            return None  # answered already (fallback); a re-sent observation is re-answered
+        if record.observation is None:
+            return None  # its observation was dropped: the env will re-send the step
+        return self._act(record, started)
+
+    def act_overdue(self, now: Optional[float] = None) -> List[Tuple[int, int]]:
+        """
+        Answer the observations whose saliency image is ``saliency_timeout_s`` (wall) late.
+
+        ``input_image: saliency`` only: such a step is answered by acting on its observation
+        (counted in ``act/fallback_observation``; the step is not learned from, as the learner
+        learns on saliency images only). Returns [(stamp, action)] to publish; the node calls
+        it on a timer.
+        """
+        now = time.monotonic() if now is None else now
+        due = []
+        with self._awaiting_lock:
+            while self._awaiting:
+                stamp, arrived = next(iter(self._awaiting.items()))
+                if now - arrived < self.config.saliency_timeout_s:
+                    break
+                self._awaiting.popitem(last=False)
+                due.append(stamp)
+        answers = []
+        for stamp in due:
+            record = self.history.get(stamp)
+            if record is None or record.action is not None or record.observation is None:
+                continue
+            action = self._act(record, None, image=record.observation)
+            self.counters['act/fallback_observation'] += 1
+            self._log('warn', f'no saliency image for step {stamp} within '
+                      f'{self.config.saliency_timeout_s} s: acted on its observation')
+            answers.append((stamp, action))
+        return answers
+
+    def _preprocess(self, kind: str, rgb: np.ndarray) -> torch.Tensor:
+        try:
+            return torch.from_numpy(preprocess(rgb))
+        except ValueError as error:
+            self.counters[f'drop/{kind}'] += 1
+            raise BadInput(f'{kind} dropped: {error}') from error
+
+    def _act(self, record, started: Optional[float], image=None) -> int:
+        if record.action is not None:
+            return record.action  # the env re-sent this step: answer it the same way
+        self.actor.refresh(self.slot)
+        kind = self.config.input_image if image is None else 'observation'
+        image = record.image(kind) if image is None else image
+        if self.actor.model.freeze_encoder:
+            features = self.actor.features(image)  # encoded once: acting and learning share it
+            self.history.put_features(kind, record.stamp, features)
+            action = self.actor.greedy_on_features(features)
+        else:
+            action = self.actor.greedy(image)
+        self.history.set_action(record.stamp, action)
+        self.journal.append(KIND_ACTION, record.stamp, action)
+        if started is not None:
+            self.act_seconds.append(time.perf_counter() - started)
+        self.counters['act/count'] += 1
+        return action

@@ -1,0 +1,115 @@
+"""
+Pairing a feedback event with the steps it credits: pure functions, no threads, no locks.
+
+The learner thread calls them (learner_loop.py) and adds what they return to the buffer and the
+counters; the one thing they change is the feature cache of the history they are given.
+
+Pairing with saliency images: the steps a feedback credits may still wait for their saliency
+image. The event stays at the head of the pending queue until every such image came, an image of
+a later step came on that stream (so this one never will), or ``saliency_timeout_s`` of wall time
+passed (``settled``); then the steps without an image are used without the L2 term. Nothing
+waits forever, and the events behind it wait no longer than that.
+"""
+
+import collections
+from typing import Counter, Dict, List, NamedTuple, Optional
+
+from tamer_node.buffer import Sample
+from tamer_node.config import TamerConfig
+from tamer_node.credit import step_credit, window_credit
+from tamer_node.events import FeedbackEvent
+from tamer_node.history import other_kind, StepHistory, StepRecord
+from tamer_node.model import HModel, to_input
+import torch
+
+
+class Paired(NamedTuple):
+    """What one feedback event gives the learner."""
+
+    samples: List[Sample]
+    counts: Counter[str]
+    """Counter increments (``events.LEARNER_COUNTERS``)."""
+    warning: Optional[str]
+    """Why an 'ok' feedback is not learned from, or None."""
+
+
+def credit(event: FeedbackEvent, history: StepHistory, config: TamerConfig) -> Dict[int, float]:
+    """Return {stamp: weight} of the steps in ``history`` that ``event`` credits."""
+    if event.credit == 'window':
+        if event.now is None:
+            return {}
+        return window_credit(history.acted_spans(event.now), event.now,
+                             config.window_min_s, config.window_max_s)
+    record = history.get(event.stamp) if event.stamp is not None else None
+    known = [event.stamp] if record is not None and record.action is not None else []
+    return step_credit(event.stamp, known)
+
+
+def settled(event: FeedbackEvent, history: StepHistory, config: TamerConfig,
+            wants_companion: bool) -> bool:
+    """Return whether no step ``event`` credits can still get its companion image."""
+    if not wants_companion or event.status != 'ok':
+        return True
+    companion = other_kind(config.input_image)
+    return all(history.settled(stamp, companion) for stamp in credit(event, history, config))
+
+
+def stored_item(record: StepRecord, kind: str, history: StepHistory,
+                model: HModel) -> Optional[torch.Tensor]:
+    """
+    Return what the buffer keeps of a step's ``kind`` image: the image, or its features.
+
+    With a frozen encoder: the features the actor cached when it acted, else (the saliency
+    companion, a resumed step) computed here once and cached in the history.
+    """
+    image = record.image(kind)
+    if image is None or not model.freeze_encoder:
+        return image
+    features = record.features(kind)
+    if features is None:
+        with torch.no_grad():
+            features = model.features(to_input(image))[0]
+        history.put_features(kind, record.stamp, features)
+    return features
+
+
+def pair(event: FeedbackEvent, history: StepHistory, config: TamerConfig, model: HModel,
+         wants_companion: bool) -> Paired:
+    """Return the samples of ``event`` on the steps of ``history``, and what to count."""
+    samples: List[Sample] = []
+    counts = collections.Counter({'feedback/processed': 1})
+    warning = None
+    if event.status == 'ok' and event.session != history.session:
+        counts['feedback/other_session'] += 1
+        warning = (f'feedback #{event.seq} (h={event.h}) is on a step of session '
+                   f'{event.session}, and the steps held are of session {history.session} '
+                   '(the env started over): kept in the log, not learned from')
+    elif event.status == 'ok':
+        kind = config.input_image
+        for stamp, weight in sorted(credit(event, history, config).items()):
+            record = history.get(stamp)
+            if record is None or record.image(kind) is None:
+                continue  # evicted meanwhile, or never had the image acted on
+            state = stored_item(record, kind, history, model)
+            companion = stored_item(record, other_kind(kind), history, model)
+            counts['pairing/with_saliency' if companion is not None
+                   else 'pairing/without_saliency'] += 1
+            samples.append(Sample(state, companion, record.action, float(event.h),
+                                  float(weight), stamp, event.seq, history.session))
+        if samples:
+            counts['feedback/count'] += 1
+            counts['samples/added'] += len(samples)
+        else:
+            counts['feedback/unmatched'] += 1
+            warning = (f'feedback #{event.seq} (h={event.h}) matches no step the agent acted '
+                       f'on (credit {event.credit}, stamp {event.stamp}); kept in the log, not '
+                       'learned from')
+    elif event.status == 'duplicate':
+        counts['feedback/duplicates'] += 1
+    elif event.status == 'invalid':
+        counts['feedback/invalid'] += 1
+    else:
+        counts['feedback/unmatched'] += 1
+    if not wants_companion:
+        counts.pop('pairing/without_saliency', None)
+    return Paired(samples, counts, warning)
