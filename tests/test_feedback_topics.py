@@ -133,7 +133,7 @@ def stamped_h(msgs):
 def test_trainer_follows_the_expert_position_by_position(probe, start_node):
     listener = TrainerListener(probe)
     learner = ExpertLearner(probe)
-    trainer = start_node('feedback_node', {'utterance_interval': 0.0})
+    trainer = start_node('feedback_node', {'utterance_interval': 0.0, 'plain_copies': True})
     # The trainer listens before the env starts (agent_position is not kept for late joiners).
     assert wait_until(lambda: probe.node.count_subscribers(topics.AGENT_POSITION) >= 2,
                       STARTUP_S)
@@ -193,7 +193,7 @@ def test_trainer_follows_the_expert_position_by_position(probe, start_node):
                if p >= 0 and p not in on_positions[:i]]
     assert visited == [0, 1, 2, 3, 4, 5]
 
-    # Each stamped message has its plain companion, with the same value.
+    # plain_copies: each stamped message has its plain companion, with the same value.
     all_h = sorted(m.vector.x for m in listener.feedback_stamped.snapshot())
     all_text = sorted(m.status[0].message for m in listener.utterance_stamped.snapshot())
     assert listener.feedback.wait_count(len(all_h), REPLY_S)
@@ -301,4 +301,20 @@ def test_synthetic_false_publishes_nothing(probe, start_node):
     assert listener.utterance_stamped.snapshot() == []
     assert listener.feedback.snapshot() == []
     assert {m.data for m in listener.utterance.snapshot()} == {'Climb up the ladder.'}
+    assert trainer.stop(signal.SIGINT) == 0
+
+
+def test_stamped_feedback_has_no_plain_copy_unless_asked(probe, start_node):
+    """The learner needs one message per judgement: the plain twin is off by default."""
+    listener = TrainerListener(probe)
+    positions = probe.publisher(PointStamped, topics.AGENT_POSITION, qos.STEP_DATA)
+    trainer = start_node('feedback_node', {'utterance_interval': 0.0})
+    assert probe.wait_for_subscribers(positions, timeout=STARTUP_S)
+    assert wait_until(lambda: probe.node.count_publishers(topics.FEEDBACK) >= 1, STARTUP_S)
+    publish_positions(positions, range(0, 20))
+    assert listener.feedback_stamped.wait_count(19, REPLY_S), trainer.log_text()[-2000:]
+    # The plain utterances are published after the feedback of the same step.
+    assert listener.utterance.wait_count(len(listener.utterance_stamped.snapshot()), REPLY_S)
+    assert listener.utterance.snapshot()
+    assert listener.feedback.snapshot() == []
     assert trainer.stop(signal.SIGINT) == 0

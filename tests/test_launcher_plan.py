@@ -10,13 +10,16 @@ from attention_bringup.gallery import cdr_header_stamp_ns, GalleryCollector
 from attention_bringup.params import (
     dump_params, load_params_file, merge_params, node_params, ParamsFileError, parse_params)
 from attention_bringup.plan import (
-    build_plan, DEFAULT_STEPS, LaunchOptions, OVERRIDES_FILE, parse_options, REALTIME_RATE_HZ,
+    build_plan, DEFAULT_STEPS, LaunchOptions, parse_options, REALTIME_RATE_HZ,
     TEACHING_GREEDY_MARGIN)
 from attention_bringup.progress import (
     ALIVE_STEPS, format_bar, parse_value, ProgressTracker, RECENT_ROWS, RECENT_STAMPS)
 from attention_bringup.report import ProgressWriter, read_rows_for_plot
+from attention_common.run_files import node_log, of_session, OVERRIDES_FILE
+from feedback_node.critical_positions import DEFAULT_RADIUS
 from feedback_node.teacher import TRAINERS
 import pytest
+from saliency_node.saliency import BLUR_RADIUS
 
 BIN = Path('/opt/venv/bin')
 LAUNCH_FILE = (Path(__file__).resolve().parents[1] / 'src' / 'attention_bringup' / 'launch'
@@ -81,11 +84,11 @@ def test_dump_round_trips_and_quotes_yaml_booleans():
 
 # -- the shipped YAML files -----------------------------------------------------------------
 
-def test_graph_yaml_names_every_node_and_sim_time():
+def test_graph_yaml_names_every_node_and_no_clock_subscription():
     params = load_params_file(graph.graph_file())
     assert set(params) == set(graph.NODES)
-    for node in graph.NODES:
-        assert params[node].get('use_sim_time', False) is (node != 'env_node'), node
+    for node in graph.NODES:  # time comes from message stamps, not /clock
+        assert params[node].get('use_sim_time', True) is False, node
 
 
 @pytest.mark.parametrize('condition', graph.CONDITIONS)
@@ -154,6 +157,26 @@ def test_plan_starts_four_executables_with_files_in_order(tmp_path):
     assert plan.effective['tamer_node']['alpha'] == 0.5  # the user's file beats the condition
     assert plan.effective['tamer_node']['input_image'] == 'saliency'
     assert plan.effective['tamer_node']['run_dir'] == str(plan.run_dir)
+
+
+def test_node_logs_and_archived_summaries_are_named_per_session():
+    assert node_log('tamer_node') == 'logs/tamer_node.log'
+    assert node_log('tamer_node', 2) == 'logs/tamer_node.session2.log'
+    assert of_session('summary.json', 1) == 'summary.session1.json'
+    assert of_session('summary.json', '*') == 'summary.session*.json'
+
+
+def test_graph_yaml_writes_the_defaults_defined_in_code():
+    params = load_params_file(graph.graph_file())
+    assert params['feedback_node']['alpha_threshold'] == DEFAULT_RADIUS
+    assert params['saliency_node']['blur_radius'] == BLUR_RADIUS
+
+
+def test_progress_counts_critical_positions_with_the_feedback_nodes_radius(tmp_path):
+    assert _plan(tmp_path).critical_radius == DEFAULT_RADIUS
+    user = tmp_path / 'near.yaml'
+    user.write_text('feedback_node:\n  ros__parameters: {alpha_threshold: 5.0}\n')
+    assert _plan(tmp_path, params_files=['near.yaml']).critical_radius == 5.0
 
 
 def test_plan_overrides_follow_the_options(tmp_path):

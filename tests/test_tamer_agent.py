@@ -13,8 +13,8 @@ from tamer_node.config import TamerConfig
 from tamer_node.credit import NS_PER_S
 from tamer_node.model import Encoder, FEATURE_SIZE, INPUT_SHAPE, preprocess, to_input
 from tamer_node.persistence import (
-    CHECKPOINT_DIR, CHECKPOINT_FILE, FEEDBACK_LOG, FeedbackLog, KIND_ACTION, KIND_OBSERVATION,
-    load_checkpoint, StepJournal)
+    CHECKPOINT_DIR, CHECKPOINT_FILE, DiskWriter, FEEDBACK_LOG, FeedbackLog, KIND_ACTION,
+    KIND_OBSERVATION, load_checkpoint, StepJournal)
 import torch
 
 torch.set_num_threads(1)
@@ -590,4 +590,28 @@ def test_the_journal_keeps_only_segments_with_needed_steps(tmp_path):
         (1, 20, 7 * image.numel()), (1, 30, 7 * image.numel())]
     journal.delete_older_than((1, 10 ** 12))
     assert segments() == [3]  # never the one being written
+    journal.close()
+
+
+def test_the_disk_thread_outlives_a_failing_error_report(tmp_path):
+    """A logger that raises while a write failure is reported must not stop later writes."""
+    journal = StepJournal(tmp_path, 0)
+    reports = []
+
+    def failing_report(text):
+        reports.append(text)
+        raise ValueError('Logger severity cannot be changed between calls.')
+
+    disk = DiskWriter(journal, failing_report)
+    disk.start()
+    written = []
+
+    def broken_job():
+        raise OSError('disk full')
+
+    disk.submit(broken_job)
+    disk.submit(lambda: written.append(1))
+    assert disk.flush(10.0) and written == [1]
+    assert disk.errors == 1 and 'disk full' in reports[0]
+    disk.stop()
     journal.close()

@@ -5,10 +5,10 @@ import math
 import signal
 
 from attention_common import qos, topics
+from attention_common.executors import EXECUTOR_ENV, EXECUTORS
 from attention_common.image_codec import numpy_to_image
 from attention_common.joy_actions import joy_to_action
 from attention_common.stamps import ns_to_stamp, stamp_to_ns
-import cv2
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Vector3Stamped
 from harness import wait_until
@@ -17,6 +17,7 @@ import pytest
 from rcl_interfaces.msg import Parameter as ParameterMsg
 from rcl_interfaces.msg import ParameterType, ParameterValue
 from rcl_interfaces.srv import SetParameters
+from saliency_node.saliency import BLUR_RADIUS, gaussian_blur
 from sensor_msgs.msg import Image, Joy
 from std_msgs.msg import Float32, String
 from tamer_node.pretrain import collect_frames
@@ -94,7 +95,7 @@ def values(msg):
 
 
 def blurred(frame):
-    return cv2.GaussianBlur(frame, (7, 7), 0)
+    return gaussian_blur(frame, BLUR_RADIUS)
 
 
 def feedback_lines(run_dir):
@@ -277,7 +278,12 @@ def test_start_up_errors_say_what_to_do(start_node, tmp_path):
     assert 'credit' in wrong.log_text()
 
 
-def test_every_logged_feedback_and_utterance_gets_a_receipt(probe, start_node, tmp_path, frames):
+@pytest.mark.parametrize('executor', EXECUTORS)
+def test_every_logged_feedback_and_utterance_gets_a_receipt(probe, start_node, tmp_path, frames,
+                                                            monkeypatch, executor):
+    # Under either executor: the receipts need rclpy's MessageInfo, which rclpy 7.1.6's
+    # EventsExecutor hands over in another form (attention_common.executors).
+    monkeypatch.setenv(EXECUTOR_ENV, executor)
     run_dir = tmp_path / 'run'
     node = start_node('tamer_node', {'run_dir': str(run_dir), 'metrics_period_s': 0.2})
     graph = Graph(probe)

@@ -1,10 +1,11 @@
 """
 The Jazzy ``main()`` every node of the graph shares.
 
-``rclpy.init``, build the node, spin, and on Ctrl-C / SIGINT / SIGTERM destroy the node and shut
-down cleanly with exit code 0. A node that cannot start (a missing template file, say) raises
-``StartupError`` from its constructor: the message is printed once, plainly, and the exit code
-is 1.
+``rclpy.init``, build the node, spin it in the main thread (``executors.py``: rclpy's
+EventsExecutor unless ``ATTENTION_EXECUTOR=single``), and on Ctrl-C / SIGINT / SIGTERM destroy
+the node and shut down cleanly with exit code 0. A node that cannot start (a missing template
+file, say) raises ``StartupError`` from its constructor: the message is printed once, plainly,
+and the exit code is 1.
 """
 
 import sys
@@ -12,8 +13,9 @@ import time
 from typing import Callable, Optional
 
 from attention_common.dds_memory import use_freed_payloads
+from attention_common.executors import make_executor, release, spin_until_shutdown
 import rclpy
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.executors import ExternalShutdownException
 
 
 SHUTDOWN_GRACE_S = 0.5
@@ -37,12 +39,12 @@ def run_node(node_factory: Callable[[], object], args=None,
     """Run one node until shutdown; return the process exit code."""
     use_freed_payloads()  # before rclpy.init: Fast DDS reads its profile then
     rclpy.init(args=args)
-    node = None
+    node = executor = None
     try:
         node = node_factory()
-        executor = (executor_factory or SingleThreadedExecutor)()
+        executor = (executor_factory or make_executor)()
         executor.add_node(node)
-        executor.spin()
+        spin_until_shutdown(executor)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except StartupError as error:
@@ -55,6 +57,12 @@ def run_node(node_factory: Callable[[], object], args=None,
         # message: rclpy shuts the context down meanwhile, and creating a publisher or taking
         # from a subscription then fails. That is stopping, not an error.
     finally:
+        if executor is not None:
+            # Let go of the node's entities first: the EventsExecutor holds them "in use", and
+            # a node destroyed under it left saliency_node spinning in rclpy's EventHandler
+            # __exit__ after the end of a run, never exiting.
+            release(executor, node)
+            executor = None
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()

@@ -6,9 +6,10 @@ condition) or ``teacher`` (judges each action against the scripted expert's, fro
 ``env_status``: ``feedback_node.teacher``).
 
 Subscribes ``agent_position``. With ``synthetic`` true, for every position (step T') it
-publishes the feedback judging the action of the previous step T (``feedback_stamped``, stamp T,
-then the plain ``feedback``) and, when one is due, the utterance said at T'
-(``utterance_stamped``, stamp T', then the plain ``utterance``). With ``synthetic`` false it
+publishes the feedback judging the action of the previous step T (``feedback_stamped``, stamp
+T; the plain ``feedback`` only with ``plain_copies`` or when the teacher is late) and, when one
+is due, the utterance said at T' (``utterance_stamped``, stamp T', then the plain
+``utterance``). With ``synthetic`` false it
 publishes nothing and logs what a person says on ``utterance`` and ``feedback``; bad input gets
 a clear error line and is counted. ``synthetic`` can be switched at run time
 (``ros2 param set /feedback_node synthetic false``).
@@ -63,6 +64,9 @@ PARAMETERS = {
     'feedback_delay_max': (0.0, 'Longest delay; drawn uniformly between the two.'),
     'feedback_noise': (0.0, 'Probability that the sign of h is flipped.'),
     'seed': (0, 'Seeds the human-like draws (probability, delay, noise).'),
+    'plain_copies': (False, 'true: publish every stamped feedback on the plain feedback topic '
+                            'too (the learner logs such a copy as a duplicate); false: only the '
+                            'late teacher, which has no stamp to give, uses the plain topic.'),
     'summary_period': (30.0, 'Wall seconds between the log lines of counts (when they changed).'),
 }
 
@@ -79,6 +83,7 @@ class FeedbackNode(Node):
         super().__init__('feedback_node', **kwargs)
         params = declare_parameters(self, PARAMETERS, runtime=('synthetic',))
         self._synthetic = bool(params.pop('synthetic'))
+        self._plain_copies = bool(params.pop('plain_copies'))
         summary_period = params.pop('summary_period')
         if summary_period <= 0:
             raise StartupError(f'summary_period must be > 0, got {summary_period}')
@@ -177,7 +182,7 @@ class FeedbackNode(Node):
             self._publish_utterance(out.utterance)
 
     def _publish_feedback(self, stamp_ns: int, h: float, y: float, z: float) -> None:
-        """feedback_stamped (unless it comes late, as a person's would), then plain feedback."""
+        """feedback_stamped, or plain feedback when it comes late (as a person's would)."""
         self._unsent.append((stamp_ns, h, y, z))
         self._send_held()
 
@@ -200,7 +205,8 @@ class FeedbackNode(Node):
                 msg_out.vector.x, msg_out.vector.y, msg_out.vector.z = (
                     float(h), float(y), float(z))
                 self._feedback_stamped_pub.publish(msg_out)
-            self._feedback_pub.publish(Float32(data=float(h)))
+            if not stamped or self._plain_copies:
+                self._feedback_pub.publish(Float32(data=float(h)))
 
     # -- the teacher --------------------------------------------------------------------------
 

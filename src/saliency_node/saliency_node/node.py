@@ -19,6 +19,7 @@ from attention_common.node_main import run_node, StartupError
 from attention_common.stamps import NS_PER_S, stamp_to_ns, StampGuard
 from diagnostic_msgs.msg import DiagnosticArray
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
+from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from saliency_node.grounding import ascii_text, Grounder
 from saliency_node.manifest import (load_manifest, load_template_images, ManifestError,
@@ -76,7 +77,9 @@ class SaliencyNode(Node):
         self.create_subscription(String, topics.UTTERANCE, self._on_utterance, qos.HUMAN)
         self.create_subscription(DiagnosticArray, topics.UTTERANCE_STAMPED,
                                  self._on_utterance_stamped, qos.HUMAN)
-        self._status_timer = self.create_timer(self.settings.status_period, self._log_status)
+        self._status_timer = self.create_timer(  # wall time, whatever use_sim_time says
+            self.settings.status_period, self._log_status,
+            clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.get_logger().info(
             f'ready: mode {self.config.mode}, {len(objects)} objects '
             f'({", ".join(o.name for o in objects)}) from {manifest.folder / "manifest.yaml"}')

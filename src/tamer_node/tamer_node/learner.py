@@ -8,7 +8,7 @@ import torch
 
 
 class Learner:
-    """Trains an ``HModel``; one thread at a time calls ``train_step`` (see worker.py)."""
+    """Trains an ``HModel``; one thread at a time calls ``train_step`` (see learner_loop.py)."""
 
     def __init__(self, model: HModel, learning_rate: float = 3e-4, alpha: float = 1e-4,
                  max_grad_norm: float = 1.0):

@@ -6,17 +6,18 @@ publishes ``action`` (sensor_msgs/Joy with the answered image's header), ``metri
 ``feedback_logged``: one receipt per feedback or utterance line written to the log.
 Every TamerConfig field is a parameter of the same name; ``alpha`` may be changed at run time.
 
-Executor: a SingleThreadedExecutor on purpose. Every callback only converts and hands over
-(acting itself is a ~1 ms forward pass); training runs on the learner thread and all disk I/O,
-the feedback log included, on the disk thread (worker.py states the contract). rclpy's
-MultiThreadedExecutor measured 2-3x fewer lockstep steps per second here on 2 shared cores,
-for nothing a callback would gain from running in parallel.
+Executor: one thread (``attention_common.executors``: the EventsExecutor) on purpose. Every
+callback only converts and hands over (acting itself is a ~1 ms forward pass); training runs on
+the learner thread and all disk I/O, the feedback log included, on the disk thread (agent.py
+states the contract). rclpy's MultiThreadedExecutor measured 2-3x fewer lockstep steps per
+second here on 2 shared cores, for nothing a callback would gain from running in parallel.
 """
 
 import dataclasses
 import math
 
 from attention_common import qos, topics
+from attention_common.executors import with_message_info
 from attention_common.image_codec import image_to_numpy, ImageFormatError
 from attention_common.joy_actions import action_to_joy
 from attention_common.node_main import run_node, StartupError
@@ -25,6 +26,7 @@ from attention_common.stamps import ns_to_stamp, stamp_to_ns
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Vector3Stamped
 from rcl_interfaces.msg import SetParametersResult
+from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from sensor_msgs.msg import Image, Joy
 from std_msgs.msg import Float32, Header, String
@@ -65,16 +67,19 @@ class TamerNode(Node):
         self.create_subscription(Image, topics.OBSERVATION, self._on_observation, qos.FRAMES)
         self.create_subscription(Image, topics.SALIENCY, self._on_saliency, qos.FRAMES)
         self.create_subscription(Vector3Stamped, topics.FEEDBACK_STAMPED,
-                                 self._on_feedback_stamped, qos.HUMAN)
-        self.create_subscription(Float32, topics.FEEDBACK, self._on_feedback, qos.HUMAN)
-        self.create_subscription(String, topics.UTTERANCE, self._on_utterance, qos.HUMAN)
-        self.create_timer(self.config.metrics_period_s, self._publish_metrics)
+                                 with_message_info(self._on_feedback_stamped), qos.HUMAN)
+        self.create_subscription(Float32, topics.FEEDBACK, with_message_info(self._on_feedback),
+                                 qos.HUMAN)
+        self.create_subscription(String, topics.UTTERANCE, with_message_info(self._on_utterance),
+                                 qos.HUMAN)
+        steady = Clock(clock_type=ClockType.STEADY_TIME)  # wall time, whatever use_sim_time says
+        self.create_timer(self.config.metrics_period_s, self._publish_metrics, clock=steady)
         self._frame_id = ''
         self._drops = 0
         if self.config.input_image == 'saliency':
             # A step whose saliency image does not come is answered on its observation.
             period = min(0.05, max(0.005, self.config.saliency_timeout_s / 5))
-            self.create_timer(period, self._answer_overdue)
+            self.create_timer(period, self._answer_overdue, clock=steady)
         self.get_logger().info(
             f'ready: run_dir {self.config.run_dir}, alpha {self.config.alpha}, credit '
             f'{self.config.credit}, input_image {self.config.input_image}, model version '
@@ -172,6 +177,8 @@ class TamerNode(Node):
 
     def _publish_receipt(self, entry: dict) -> None:
         """On the disk thread: say on feedback_logged what was just written to the log."""
+        if not self.context.ok():
+            return  # shutting down (the line is on disk; nobody could hear the receipt now)
         keys = ('seq', 'h', 'source', 'status', 'stamp_ns', 'session', 'publication_seq',
                 'source_time_ns', 'chars')
         status = DiagnosticStatus(level=DiagnosticStatus.OK, name=entry['kind'],
@@ -184,8 +191,16 @@ class TamerNode(Node):
         self.logged_pub.publish(array)
 
     def _log(self, level: str, text: str) -> None:
+        # One call site per severity: rclpy's logger refuses another severity from the same
+        # line ("Logger severity cannot be changed between calls"), and the ValueError had
+        # killed the disk thread, losing the feedback still queued to the log.
         logger = self.get_logger()
-        {'info': logger.info, 'warn': logger.warning, 'error': logger.error}[level](text)
+        if level == 'error':
+            logger.error(text)
+        elif level == 'warn':
+            logger.warning(text)
+        else:
+            logger.info(text)
 
     # Metrics.
     def _publish_metrics(self) -> None:
@@ -222,7 +237,7 @@ def _format(value) -> str:
 
 
 def main(args=None) -> int:
-    return run_node(TamerNode, args)  # SingleThreadedExecutor: see the module docstring
+    return run_node(TamerNode, args)  # one thread: see the module docstring
 
 
 if __name__ == '__main__':
