@@ -3,8 +3,9 @@
 import math
 
 from feedback_node.critical_positions import (
-    critical_position_at, CRITICAL_POSITIONS, nearest_critical_position)
+    critical_position_at, CRITICAL_POSITIONS, DEFAULT_RADIUS, nearest_critical_position)
 from feedback_node.reward import RewardConfig, RewardFunction, threshold_reward
+from feedback_node.trainer import TrainerConfig
 import pytest
 
 RIGHT_LADDER_BOTTOM = CRITICAL_POSITIONS[3]
@@ -41,7 +42,12 @@ def test_h_from_a_position_near_a_critical_position(dx, dy, expected):
     assert judgement.target == 3
     assert judgement.distance == pytest.approx(math.hypot(dx, dy))
     assert judgement.h == expected
-    assert judgement.position == (3 if math.hypot(dx, dy) < 8 else -1)
+    assert judgement.position == (3 if math.hypot(dx, dy) < DEFAULT_RADIUS else -1)
+
+
+def test_alpha_is_the_thesis_8_px_everywhere_by_default():
+    assert DEFAULT_RADIUS == 8.0
+    assert RewardConfig().alpha_threshold == TrainerConfig().alpha_threshold == DEFAULT_RADIUS
 
 
 @pytest.mark.parametrize('alpha, beta, d, expected', [

@@ -15,7 +15,7 @@ import pytest
 from saliency_node.grounding import Grounder
 from saliency_node.manifest import load_manifest, load_template_images
 from saliency_node.matching import build_objects, method_from_name, SceneMatcher
-from saliency_node.saliency import gaussian_blur, SaliencyConfig, SaliencyMaker
+from saliency_node.saliency import BLUR_RADIUS, gaussian_blur, SaliencyConfig, SaliencyMaker
 
 # Room 1's layout: top-left corners of every instance (frame pixels).
 LAYOUT = {
@@ -194,8 +194,8 @@ def test_language_keeps_ladder_skull_and_agent_and_blurs_the_rest(on_ladder, mak
     for kept in (ladder, skull, agent):
         assert np.array_equal(image[kept], frame[kept])
         assert mask[kept].all()
-    far = _far_from(frame, [mask], 3)
-    blurred = gaussian_blur(frame, 3)
+    far = _far_from(frame, [mask], BLUR_RADIUS)
+    blurred = gaussian_blur(frame, BLUR_RADIUS)
     assert np.array_equal(image[far], blurred[far])
     assert (image[far] != frame[far]).any(axis=1).sum() > 1000  # the rest really is blurred
     key_box = np.zeros(frame.shape[:2], bool)
@@ -209,8 +209,8 @@ def test_blind_agent_keeps_only_the_agent(on_ladder, maker):
     agent, ladder = _colour_pixels(frame, AGENT_COLOURS), _ladder_pixels(frame)
     assert np.array_equal(image[agent], frame[agent])
     assert (image[ladder] != frame[ladder]).any()
-    far = _far_from(frame, [mask], 3)
-    assert np.array_equal(image[far], gaussian_blur(frame, 3)[far])
+    far = _far_from(frame, [mask], BLUR_RADIUS)
+    assert np.array_equal(image[far], gaussian_blur(frame, BLUR_RADIUS)[far])
     assert mask[~_far_from(frame, [agent], 1)].sum() == mask.sum()  # only at the agent
 
 
@@ -232,7 +232,7 @@ def test_hidden_agent_removes_the_agent_and_keeps_the_rest(route, on_ladder, mak
     assert np.array_equal(image[far], frame[far])
     # Where the agent was, the blurred room without it: as on a frame with the agent far away.
     elsewhere = route.frames[route.phases.index('ACROSS_FLOOR')]
-    assert np.array_equal(image[agent], gaussian_blur(elsewhere, 3)[agent])
+    assert np.array_equal(image[agent], gaussian_blur(elsewhere, BLUR_RADIUS)[agent])
 
 
 def test_faded_dims_instead_of_blurring(on_ladder, maker):

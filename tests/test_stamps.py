@@ -1,9 +1,7 @@
-"""Stamps as integer nanoseconds and the StampStore (attention_common.stamps)."""
-
-import threading
+"""Stamps as integer nanoseconds and the StampGuard (attention_common.stamps)."""
 
 from attention_common.stamps import (frames_to_ns, NS_PER_S, ns_to_stamp, stamp_to_ns,
-                                     StampGuard, StampStore)
+                                     StampGuard)
 from builtin_interfaces.msg import Time
 import pytest
 
@@ -33,71 +31,6 @@ def test_frame_stamps_strictly_increase_and_survive_the_round_trip():
     stamps = [frames_to_ns(frames) for frames in range(0, 100_000, 4)]
     assert all(b > a for a, b in zip(stamps, stamps[1:]))
     assert all(stamp_to_ns(ns_to_stamp(ns)) == ns for ns in stamps)
-
-
-def test_store_pairs_by_stamp():
-    store = StampStore(4)
-    store.put(10, 'a')
-    store.put(20, 'b')
-    assert store.get(10) == 'a' and store.get(15) is None
-    assert store.pop(10) == 'a' and store.pop(10) is None
-    assert len(store) == 1
-
-
-@pytest.mark.parametrize('capacity', [1, 3, 8])
-def test_store_is_bounded_and_evicts_the_oldest(capacity):
-    store = StampStore(capacity)
-    for stamp in range(capacity + 5):
-        store.put(stamp, stamp)
-    assert len(store) == capacity and store.evicted == 5
-    assert store.get(4) is None and store.get(capacity + 4) == capacity + 4
-
-
-def test_store_put_again_refreshes_an_entry():
-    store = StampStore(2)
-    store.put(1, 'old')
-    store.put(2, 'two')
-    store.put(1, 'new')  # now the most recent, so 2 goes first
-    store.put(3, 'three')
-    assert store.get(1) == 'new' and store.get(2) is None and store.evicted == 1
-
-
-@pytest.mark.parametrize('cut, expected_old, expected_left', [
-    (0, [], [5, 10, 15]),
-    (10, [5], [10, 15]),
-    (11, [5, 10], [15]),
-    (100, [5, 10, 15], []),
-])
-def test_pop_older_than(cut, expected_old, expected_left):
-    store = StampStore(10)
-    for stamp in (10, 5, 15):  # arrival order differs from stamp order
-        store.put(stamp, f'v{stamp}')
-    old = store.pop_older_than(cut)
-    assert sorted(old) == [(s, f'v{s}') for s in expected_old]
-    assert sorted(s for s in (5, 10, 15) if store.get(s) is not None) == expected_left
-
-
-@pytest.mark.parametrize('capacity', [0, -1])
-def test_store_needs_room(capacity):
-    with pytest.raises(ValueError):
-        StampStore(capacity)
-
-
-def test_store_stays_bounded_under_concurrent_writers():
-    store = StampStore(50)
-
-    def writer(offset):
-        for i in range(2000):
-            store.put(offset * 10_000 + i, i)
-            store.pop(offset * 10_000 + i - 7)
-
-    threads = [threading.Thread(target=writer, args=(n,)) for n in range(4)]
-    for thread in threads:
-        thread.start()
-    for thread in threads:
-        thread.join(timeout=30)
-    assert not any(thread.is_alive() for thread in threads)
-    assert len(store) <= 50
 
 
 # StampGuard: implausible jumps and restarts of a stream's stamps.

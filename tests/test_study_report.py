@@ -9,6 +9,7 @@ from pathlib import Path
 
 from attention_bringup.graph import CONDITIONS
 from attention_bringup.study import analysis, cli, figures, trials
+from attention_common.run_files import STUDY_LOG
 import pytest
 
 BUDGET = 1000
@@ -227,7 +228,7 @@ def test_existing_results_are_skipped_without_the_launcher(tmp_path, capsys, no_
                      '--out', str(out), '--report', str(tmp_path / 'r.md')])
     assert code == 0
     assert '1 trial(s) already have results: skipped' in capsys.readouterr().err
-    assert not (out / 'runs').exists() and not (out / cli.LOG_FILE).exists()
+    assert not (out / 'runs').exists() and not (out / STUDY_LOG).exists()
     assert '| `vanilla` | 1/1 | none |' in (tmp_path / 'r.md').read_text()
 
 

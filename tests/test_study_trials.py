@@ -19,6 +19,7 @@ import time
 from attention_bringup.progress import PROGRESS_COLUMNS
 from attention_bringup.study import runner, trials
 from attention_bringup.study.analysis import censored_steps, progress_step
+from attention_common.run_files import LAUNCHER_LOG
 import pytest
 
 
@@ -124,7 +125,7 @@ def test_a_crashed_run_keeps_its_log_tails(tmp_path):
                                          'exit_text': 'tamer_node exit code 1'})
     (run / 'logs').mkdir()
     (run / 'logs' / 'tamer_node.log').write_text('x' * 5000 + '\nRuntimeError: out of memory\n')
-    (run / trials.LAUNCHER_LOG).write_text('attention_train: tamer_node died\n')
+    (run / LAUNCHER_LOG).write_text('attention_train: tamer_node died\n')
     record = trials.build_record('language', 0, 100, run, 1, 5.0)
     assert record['outcome'] == trials.CRASHED and record['steps'] == 2
     problem = record['problem']

@@ -31,11 +31,11 @@ from attention_common import qos, topics
 from attention_common.image_codec import numpy_to_image
 from attention_common.isolation import apply_to_this_process, isolated_environ, reserved_domain
 from attention_common.stamps import ns_to_stamp, stamp_to_ns
-import cv2
 from diagnostic_msgs.msg import DiagnosticArray
 from env_node.core import EnvConfig, MontezumaEnv
 from geometry_msgs.msg import Vector3Stamped
 import numpy as np
+from saliency_node.saliency import BLUR_RADIUS, gaussian_blur
 from sensor_msgs.msg import Image, Joy
 from tamer_node.agent import share_the_cpu, TamerAgent
 from tamer_node.config import TamerConfig
@@ -51,7 +51,7 @@ def rss_mb() -> float:
 
 
 def saliency_of(frame: np.ndarray) -> np.ndarray:
-    return cv2.GaussianBlur(frame, (7, 7), 0)
+    return gaussian_blur(frame, BLUR_RADIUS)
 
 
 def bench_in_process(steps: int, update_rate_hz: float, checkpoint_period_s: float,

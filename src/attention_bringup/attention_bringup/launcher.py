@@ -14,6 +14,7 @@ the graph stalled or a node did not stop cleanly; 2 for bad options or files; 13
 
 import contextlib
 import datetime
+import functools
 import os
 from pathlib import Path
 import re
@@ -28,14 +29,16 @@ from attention_bringup.gallery import GalleryCollector
 from attention_bringup.graph import NODES
 from attention_bringup.params import ParamsFileError
 from attention_bringup.plan import (
-    build_plan, chosen_domain, CONSOLE, Continuation, LaunchPlan, OPTIONS_FILE, OVERRIDES_FILE,
-    parse_options,
-    resumed_options, save_options)
+    build_plan, chosen_domain, CONSOLE, Continuation, LaunchPlan, parse_options, resumed_options,
+    save_options)
 from attention_bringup.processes import (
     cpu_seconds, exit_description, log_tail, NodeGroup, resident_memory_kb)
 from attention_bringup.progress import format_bar, ProgressTracker
 from attention_common.dds_memory import use_freed_payloads
 from attention_common.isolation import apply_to_this_process, isolated_environ, reserved_domain
+from attention_common.run_files import (
+    CHECKPOINT_DIR, FEEDBACK_LOG, GALLERY_FILE, LEARNING_CURVE_FILE, LOGS_DIR, METRICS_CSV,
+    of_session, OPTIONS_FILE, OVERRIDES_FILE, PARAMS_FILE, PIDS_FILE, PROGRESS_FILE, SUMMARY_FILE)
 
 STARTUP_TIMEOUT_S = 300.0
 """Longest wait for the first step (node start-up includes importing torch on a busy CPU)."""
@@ -65,18 +68,18 @@ class Launcher:
     def _prepare_run_dir(self) -> None:
         run_dir = self.plan.run_dir
         session = self.plan.continuation.session
-        summary = run_dir / report.SUMMARY_FILE
+        summary = run_dir / SUMMARY_FILE
         if session > 1:  # the earlier session's summary is kept under its own name
             if summary.exists():
-                summary.replace(run_dir / f'summary.session{session - 1}.json')
+                summary.replace(run_dir / of_session(SUMMARY_FILE, session - 1))
         elif summary.exists() or (run_dir / OPTIONS_FILE).exists():
             raise FileExistsError(f'{run_dir} already holds a run; continue it with --resume '
                                   f'{run_dir}, or choose another --run-dir')
-        (run_dir / 'logs').mkdir(parents=True, exist_ok=True)
+        (run_dir / LOGS_DIR).mkdir(parents=True, exist_ok=True)
         if session == 1:
             save_options(self.plan.options, run_dir)
         (run_dir / OVERRIDES_FILE).write_text(self.plan.overrides_text())
-        report.write_params(run_dir / report.PARAMS_FILE, self.plan.effective,
+        report.write_params(run_dir / PARAMS_FILE, self.plan.effective,
                             self.plan.options_dict(), 'from the parameter files, at start')
 
     def _node_environ(self) -> dict:
@@ -85,7 +88,7 @@ class Launcher:
             'PYTHONUNBUFFERED': '1',
             'RCUTILS_COLORIZED_OUTPUT': '0',
             'RCUTILS_LOGGING_BUFFERED_STREAM': '1',
-            'ROS_LOG_DIR': str(self.plan.run_dir / 'logs' / 'ros'),
+            'ROS_LOG_DIR': str(self.plan.run_dir / LOGS_DIR / 'ros'),
         })
         return env
 
@@ -117,10 +120,12 @@ class Launcher:
         use_freed_payloads()
         context = Context()
         rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)
-        tracker = ProgressTracker(position_of=critical_position_at,
+        radius = self.plan.critical_radius  # the feedback node's, so progress agrees with it
+        tracker = ProgressTracker(position_of=functools.partial(critical_position_at,
+                                                                radius=radius),
                                   standing_poses=STANDING_POSES)
         continuation = self.plan.continuation
-        progress_file = self.plan.run_dir / report.PROGRESS_FILE
+        progress_file = self.plan.run_dir / PROGRESS_FILE
         if continuation.session > 1 and progress_file.exists():
             tracker.resume_from(report.read_progress_rows(progress_file))
         tracker.session = continuation.session
@@ -213,7 +218,7 @@ class Launcher:
                 return ended
             if time.monotonic() > deadline:
                 self.err.write(f'attention_train: {what} after {timeout_s:.0f} s; node logs are '
-                               f'in {self.plan.run_dir / "logs"}\n')
+                               f'in {self.plan.run_dir / LOGS_DIR}\n')
                 return 'stalled', None
             time.sleep(0.05)
         return None
@@ -229,7 +234,7 @@ class Launcher:
         return None
 
     def _write_pids(self, group: NodeGroup) -> None:
-        report.write_json(self.plan.run_dir / report.PIDS_FILE,
+        report.write_json(self.plan.run_dir / PIDS_FILE,
                           {'attention_train': os.getpid(), 'domain_id': self.domain_id,
                            **group.pids()})
 
@@ -333,7 +338,7 @@ class Launcher:
         what = 'no new step' if started else 'no first step'
         self.err.write(f'attention_train: {what} for {limit:.0f} s; topics never heard: '
                        f'{", ".join(silent) or "none"}. Node logs are in '
-                       f'{self.plan.run_dir / "logs"}. Stopping.\n')
+                       f'{self.plan.run_dir / LOGS_DIR}. Stopping.\n')
         self.err.flush()
 
     # -- the run folder -------------------------------------------------------------------
@@ -349,25 +354,25 @@ class Launcher:
         source = ('queried from the running nodes at the end of the run'
                   if queried and all(queried.get(n) is not None for n in NODES)
                   else 'queried from the nodes that answered; the others from the files')
-        report.write_params(run_dir / report.PARAMS_FILE, node_params,
+        report.write_params(run_dir / PARAMS_FILE, node_params,
                             self.plan.options_dict(), source)
         summary = self._summary(status, failed, exit_codes, exit_text, group, monitor, rss,
                                 queried)
         summary['cpu_s'] = {name: None if value is None else round(value, 2)
                             for name, value in cpu.items()}
-        summary['learner_log'] = report.learner_log_counts(run_dir / 'feedback_log.jsonl')
+        summary['learner_log'] = report.learner_log_counts(run_dir / FEEDBACK_LOG)
         title = (f'{self.plan.options.condition}, seed {self.plan.seed}, '
                  f'{summary["steps"]} steps')
-        rows = report.read_rows_for_plot(run_dir / report.PROGRESS_FILE, tracker.row_count)
+        rows = report.read_rows_for_plot(run_dir / PROGRESS_FILE, tracker.row_count)
         summary['files']['learning_curve'] = report.plot_learning_curve(
-            rows, run_dir / report.LEARNING_CURVE_FILE, title)
+            rows, run_dir / LEARNING_CURVE_FILE, title)
         samples = monitor.gallery.samples
         summary['gallery'] = {'samples': len(samples),
                               'with_saliency': sum(s.saliency is not None for s in samples)}
         summary['files']['saliency_gallery'] = report.plot_gallery(
-            monitor.gallery.samples, run_dir / report.GALLERY_FILE, title,
+            monitor.gallery.samples, run_dir / GALLERY_FILE, title,
             step_of=self._gallery_steps)
-        report.write_json(run_dir / report.SUMMARY_FILE, summary)
+        report.write_json(run_dir / SUMMARY_FILE, summary)
         self.out.write(f'Run folder: {run_dir}\n')
         for line in report.summary_lines(summary):
             self.out.write(f'  {line}\n')
@@ -453,11 +458,11 @@ class Launcher:
             'params_files': [str(path) for path in self.plan.params_files],
             'finished_at': datetime.datetime.now().isoformat(timespec='seconds'),
             'files': {
-                'params': report.PARAMS_FILE,
-                'progress': report.PROGRESS_FILE,
-                'metrics': 'metrics.csv' if (run_dir / 'metrics.csv').exists() else None,
-                'checkpoints': 'checkpoints' if (run_dir / 'checkpoints').is_dir() else None,
-                'logs': 'logs',
+                'params': PARAMS_FILE,
+                'progress': PROGRESS_FILE,
+                'metrics': METRICS_CSV if (run_dir / METRICS_CSV).exists() else None,
+                'checkpoints': CHECKPOINT_DIR if (run_dir / CHECKPOINT_DIR).is_dir() else None,
+                'logs': LOGS_DIR,
             },
         }
 
@@ -465,12 +470,13 @@ class Launcher:
 def continuation_of(run_dir: Path) -> Continuation:
     """Where the run in ``run_dir`` stands: the next session, and the steps done so far."""
     last = None
-    progress = run_dir / report.PROGRESS_FILE
+    progress = run_dir / PROGRESS_FILE
     if progress.exists():
         for last in report.read_progress_rows(progress):
             pass
     if last is None:
-        sessions = [int(p.stem.split('session')[1]) for p in run_dir.glob('summary.session*.json')]
+        sessions = [int(p.stem.split('session')[1])
+                    for p in run_dir.glob(of_session(SUMMARY_FILE, '*'))]
         return Continuation(session=max(sessions, default=1) + 1, steps_done=0)
     return Continuation(session=int(last.get('session') or 1) + 1,
                         steps_done=int(last['agent_step']))

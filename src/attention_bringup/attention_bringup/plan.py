@@ -17,6 +17,8 @@ from attention_bringup.graph import (
     base_params_files, CONDITIONS, DEFAULT_CONDITION, NODES)
 from attention_bringup.params import (
     dump_params, GraphParams, load_params_file, merge_params, node_params, NodeParams)
+from attention_common.run_files import node_log, OPTIONS_FILE, OVERRIDES_FILE
+from feedback_node.critical_positions import DEFAULT_RADIUS
 from feedback_node.human_like import HUMAN_LIKE_SETTING
 from feedback_node.teacher import TRAINERS
 
@@ -26,11 +28,8 @@ DEFAULT_STEPS = 10000
 REALTIME_RATE_HZ = 15.0
 """env_node ``rate_hz`` for ``--realtime``: with frameskip 4, exactly the Atari's 60 Hz."""
 
-OVERRIDES_FILE = 'launcher_overrides.yaml'
 CONSOLE = 'trainer_console'
 CONSOLE_PORT = 8080
-OPTIONS_FILE = 'launch_options.json'
-"""The options a run was started with (``--resume`` continues with them)."""
 
 TEACHING_GREEDY_MARGIN = 0.1
 """tamer_node ``greedy_margin`` with ``--trainer teacher`` (not with ``--thesis-learner``): H
@@ -230,6 +229,11 @@ class LaunchPlan:
     def overrides_text(self) -> str:
         return dump_params(self.overrides, header='Set by attention_train from its options.')
 
+    @property
+    def critical_radius(self) -> float:
+        """feedback_node's ``alpha_threshold``: how near a critical position counts as on it."""
+        return float(self.effective['feedback_node'].get('alpha_threshold', DEFAULT_RADIUS))
+
     def options_dict(self) -> dict:
         return asdict(self.options)
 
@@ -296,15 +300,15 @@ def build_plan(options: LaunchOptions, bin_dir: Path, cwd: Path,
     effective = {node: node_params(merged, node) for node in NODES}
     all_files = files + [run_dir / OVERRIDES_FILE]
     commands = []
-    suffix = f'.session{continuation.session}' if continuation.session > 1 else ''
     for node in NODES:
         argv = [str(bin_dir / node), '--ros-args']
         for path in all_files:
             argv += ['--params-file', str(path)]
-        commands.append(NodeCommand(node, argv, run_dir / 'logs' / f'{node}{suffix}.log'))
+        commands.append(NodeCommand(node, argv, run_dir / node_log(node, continuation.session)))
     if options.console:  # not a node of the study's graph: its own parameters only
         argv = [str(bin_dir / CONSOLE), '--ros-args', '-p', f'port:={int(options.console_port)}']
-        commands.append(NodeCommand(CONSOLE, argv, run_dir / 'logs' / f'{CONSOLE}{suffix}.log'))
+        log = run_dir / node_log(CONSOLE, continuation.session)
+        commands.append(NodeCommand(CONSOLE, argv, log))
     return LaunchPlan(options=options, run_dir=run_dir, seed=seed, params_files=all_files,
                       overrides=overrides, effective=effective, commands=commands,
                       continuation=continuation)

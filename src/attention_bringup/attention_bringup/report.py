@@ -11,12 +11,6 @@ from attention_bringup.gallery import GallerySample
 from attention_bringup.params import dump_params
 from attention_bringup.progress import format_duration, parse_value, PROGRESS_COLUMNS
 
-SUMMARY_FILE = 'summary.json'
-PARAMS_FILE = 'params.yaml'
-PROGRESS_FILE = 'progress.csv'
-PIDS_FILE = 'pids.json'
-LEARNING_CURVE_FILE = 'learning_curve.png'
-GALLERY_FILE = 'saliency_gallery.png'
 PLOT_ROWS = 20_000
 """About as many rows of progress.csv as the learning curve draws (a long run is thinned)."""
 PLOT_COLUMNS = ('agent_step', 'position', 'furthest_position', 'feedback_count', 'feedback_sum')

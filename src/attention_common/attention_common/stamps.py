@@ -1,19 +1,15 @@
 """
-Stamps as integer nanoseconds, and a bounded store that pairs messages by stamp.
+Stamps as integer nanoseconds, and a guard that tells a stream's stamps from strays.
 
 Every stamped message of one environment step carries that step's stamp, so integer
 nanoseconds are an exact key for pairing (floats are not).
 """
 
-import collections
-import threading
-from typing import Generic, Optional, TypeVar
+from typing import Optional
 
 from builtin_interfaces.msg import Time
 
 NS_PER_S = 1_000_000_000
-
-V = TypeVar('V')
 
 
 def stamp_to_ns(stamp) -> int:
@@ -30,51 +26,6 @@ def ns_to_stamp(ns: int) -> Time:
 def frames_to_ns(frames: int, frame_rate_hz: float = 60.0) -> int:
     """Return the simulation time of ``frames`` emulator frames (the Atari runs at 60 Hz)."""
     return int(round(frames * NS_PER_S / frame_rate_hz))
-
-
-class StampStore(Generic[V]):
-    """
-    A bounded, thread-safe map from stamp (ns) to a value, oldest evicted first.
-
-    Used to pair messages of different topics that belong to the same step, whatever order
-    they arrive in: put one side, ``pop`` it when the other side with the same stamp arrives.
-    """
-
-    def __init__(self, capacity: int):
-        if capacity < 1:
-            raise ValueError('capacity must be at least 1')
-        self._capacity = capacity
-        self._items: 'collections.OrderedDict[int, V]' = collections.OrderedDict()
-        self._lock = threading.Lock()
-        self.evicted = 0
-
-    def put(self, stamp_ns: int, value: V) -> None:
-        with self._lock:
-            self._items[stamp_ns] = value
-            self._items.move_to_end(stamp_ns)
-            while len(self._items) > self._capacity:
-                self._items.popitem(last=False)
-                self.evicted += 1
-
-    def get(self, stamp_ns: int) -> Optional[V]:
-        with self._lock:
-            return self._items.get(stamp_ns)
-
-    def pop(self, stamp_ns: int) -> Optional[V]:
-        with self._lock:
-            return self._items.pop(stamp_ns, None)
-
-    def pop_older_than(self, stamp_ns: int) -> list:
-        """Remove and return ``[(stamp, value)]`` of every entry stamped before ``stamp_ns``."""
-        with self._lock:
-            old = [(s, v) for s, v in self._items.items() if s < stamp_ns]
-            for s, _ in old:
-                del self._items[s]
-            return old
-
-    def __len__(self) -> int:
-        with self._lock:
-            return len(self._items)
 
 
 MAX_STAMP_JUMP_S = 60.0

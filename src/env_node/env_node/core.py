@@ -9,11 +9,11 @@ emulator frames (60 Hz), so that seconds mean the same in lockstep and real time
 RAM coordinates and the frame: one RAM unit is one pixel on both axes; x grows to the right,
 y grows upwards. The agent's sprite (8 columns, 20 rows while standing) spans columns
 ``x - 1 .. x + 6`` and rows ``308 - y .. 327 - y`` (its feet on row ``327 - y``), give or take
-up to three pixels while it walks, jumps or dies. ``ram_to_pixel`` and ``agent_box`` encode this.
+up to three pixels while it walks, jumps or dies (tests/test_env_core.py checks this).
 """
 
 from dataclasses import dataclass
-from typing import NamedTuple, Optional, Tuple
+from typing import NamedTuple, Optional
 
 import ale_py
 from attention_common.joy_actions import NUM_ACTIONS
@@ -38,42 +38,6 @@ NO_ACTION = -1
 """``Step.action`` of a step no agent action led to (a reset, the start after warm-up)."""
 
 FRAME_HEIGHT, FRAME_WIDTH = 210, 160
-
-# RAM position -> frame pixels (measured against the rendered sprite; see tests/test_env_core.py).
-AGENT_LEFT_OFFSET = -1
-"""The sprite's leftmost column is ``x + AGENT_LEFT_OFFSET``."""
-AGENT_FEET_ROW = 327
-"""The sprite's bottom row (its feet) is ``AGENT_FEET_ROW - y``."""
-AGENT_WIDTH, AGENT_HEIGHT = 8, 20
-"""Size of the standing sprite in pixels (hat to feet)."""
-
-
-def ram_to_pixel(x: float, y: float) -> Tuple[float, float]:
-    """Return ``(column, row)`` of the centre of the agent's sprite for RAM position ``(x, y)``."""
-    return (x + AGENT_LEFT_OFFSET + (AGENT_WIDTH - 1) / 2.0,
-            AGENT_FEET_ROW - y - (AGENT_HEIGHT - 1) / 2.0)
-
-
-def pixel_to_ram(column: float, row: float) -> Tuple[float, float]:
-    """Inverse of ``ram_to_pixel``: the RAM position whose sprite is centred on a pixel."""
-    return (column - AGENT_LEFT_OFFSET - (AGENT_WIDTH - 1) / 2.0,
-            AGENT_FEET_ROW - row - (AGENT_HEIGHT - 1) / 2.0)
-
-
-def agent_box(x: int, y: int, margin: int = 0) -> Tuple[int, int, int, int]:
-    """
-    Return ``(top, bottom, left, right)`` slice bounds (end exclusive) of the agent's sprite.
-
-    ``frame[top:bottom, left:right]`` holds the standing sprite; ``margin`` pixels on every side
-    widen it (3 holds the walking, jumping, climbing and dying frames too). Clipped to the
-    frame, so the box may be empty when the position is off screen.
-    """
-    left = int(x) + AGENT_LEFT_OFFSET - margin
-    bottom = AGENT_FEET_ROW - int(y) + 1 + margin
-    top = bottom - AGENT_HEIGHT - 2 * margin
-    right = left + AGENT_WIDTH + 2 * margin
-    return (min(max(top, 0), FRAME_HEIGHT), min(max(bottom, 0), FRAME_HEIGHT),
-            min(max(left, 0), FRAME_WIDTH), min(max(right, 0), FRAME_WIDTH))
 
 
 @dataclass

@@ -10,8 +10,8 @@ emulator (no warm-up, no sticky actions) and each position is where the expert s
 thesis's corresponding stage begins: where it lands at the bottom of the middle ladder, where
 it catches the rope, the lower right platform above the right ladder, where it steps off the
 right ladder, where it reaches the left ladder, and where it stands at the top of the left
-ladder below the key. ``tests/test_expert.py`` checks that the expert passes within 8 (the
-alpha threshold) of each, in order, on its way to the key.
+ladder below the key. ``tests/test_expert.py`` checks that the expert passes within
+``DEFAULT_RADIUS`` (the alpha threshold) of each, in order, on its way to the key.
 """
 
 import math
@@ -31,7 +31,9 @@ OUTSIDE = -1
 """The position label of everywhere in between."""
 
 DEFAULT_RADIUS = 8.0
-"""The thesis's alpha: an agent closer than this stands on a critical position."""
+"""The thesis's alpha in pixels: an agent closer than this stands on a critical position. The
+one place of this value: the feedback node's ``alpha_threshold`` default, the launcher's
+progress and the reports' texts all take it from here."""
 
 
 def distance(x: float, y: float, point: Sequence[float]) -> float:

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 from typing import NamedTuple, Optional, Tuple
 
 from feedback_node.critical_positions import (
-    CRITICAL_POSITIONS, distance, nearest_critical_position, OUTSIDE)
+    CRITICAL_POSITIONS, DEFAULT_RADIUS, distance, nearest_critical_position, OUTSIDE)
 
 VARIANTS = ('nearest', 'progress')
 
@@ -30,7 +30,7 @@ TELEPORT_DISTANCE = 24.0
 class RewardConfig:
     """Parameters of h; the feedback node's ROS parameters carry the same names."""
 
-    alpha_threshold: float = 8.0
+    alpha_threshold: float = DEFAULT_RADIUS
     """Closer than this to a critical position: h = 1."""
     beta_threshold: float = 20.0
     """At least this far: h = -1 (in between: 0)."""

@@ -19,6 +19,7 @@ consequence is seen; the feedback keeps the stamp of the step it judges), and so
 from dataclasses import dataclass
 from typing import List, NamedTuple, Optional
 
+from feedback_node.critical_positions import DEFAULT_RADIUS
 from feedback_node.human_like import FeedbackScheduler, HumanLike
 from feedback_node.reward import RewardConfig, RewardFunction
 from feedback_node.utterances import Utterance, UtteranceGenerator
@@ -28,7 +29,7 @@ from feedback_node.utterances import Utterance, UtteranceGenerator
 class TrainerConfig(HumanLike):
     """Parameters of the synthetic trainer; the node's ROS parameters carry the same names."""
 
-    alpha_threshold: float = 8.0
+    alpha_threshold: float = DEFAULT_RADIUS
     """h = 1 closer than this to a critical position; also the radius of 'standing on' one."""
     beta_threshold: float = 20.0
     """h = -1 at least this far from it (in between: 0)."""

@@ -18,7 +18,7 @@ from saliency_node.grounding import Grounder
 from saliency_node.make_templates import render_route
 from saliency_node.manifest import load_manifest, load_template_images
 from saliency_node.matching import build_objects
-from saliency_node.saliency import SaliencyConfig, SaliencyMaker
+from saliency_node.saliency import BLUR_RADIUS, SaliencyConfig, SaliencyMaker
 
 UTTERANCES = (
     'Climb downs the ladder and avoid the skull',
@@ -43,7 +43,8 @@ def make_figure(out: Path, step: int, utterances, manifest_path=None) -> Path:
             break
     else:
         raise ValueError(f'the route has fewer than {step} steps')
-    columns = ('observation', 'mask', 'saliency (blur r=3)', 'faded (rejected variant)')
+    columns = ('observation', 'mask', f'saliency (blur r={BLUR_RADIUS})',
+               'faded (rejected variant)')
     fig, axes = plt.subplots(len(utterances), len(columns),
                              figsize=(2.3 * len(columns), 3.3 * len(utterances)))
     for row, text in enumerate(utterances):

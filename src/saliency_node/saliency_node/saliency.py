@@ -5,8 +5,9 @@ Saliency images: keep the named objects and the agent sharp, blur the rest (no r
 
 The mask is 1 on the pixels of every matched template that is not background (a ladder's rails
 and rungs, the skull's own pixels, the agent's sprite) and 0 elsewhere. The blur has radius ``r``
-(kernel ``2r + 1``, the thesis uses 3) and standard deviation ``r / 2`` unless set: the kernel
-then reaches two standard deviations, so the blur is strong without being a box filter.
+(kernel ``2r + 1``; ``BLUR_RADIUS``, the thesis's 3, by default) and standard deviation
+``r / 2`` unless set: the kernel then reaches two standard deviations, so the blur is strong
+without being a box filter.
 
 Modes (section 3 and chapter 5 of the thesis):
 
@@ -30,6 +31,8 @@ import numpy as np
 from saliency_node.matching import ObjectModel, Scene, SceneMatcher
 
 MODES = ('language', 'blind_agent', 'hidden_agent', 'faded', 'off')
+BLUR_RADIUS = 3
+"""The thesis's Gaussian blur radius in pixels: the one place of the default."""
 
 
 def parse_mode(value) -> str:
@@ -47,7 +50,7 @@ class SaliencyConfig:
 
     mode: str = 'language'
     """One of ``MODES``."""
-    blur_radius: int = 3
+    blur_radius: int = BLUR_RADIUS
     """Gaussian blur radius r in pixels (kernel 2r + 1); 0 disables the blur."""
     blur_sigma: float = 0.0
     """Standard deviation of the blur; 0 means r / 2."""

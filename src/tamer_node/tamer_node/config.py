@@ -1,6 +1,5 @@
 """Every hyperparameter of the learner in one dataclass; each field is a ROS parameter too."""
 
-import dataclasses
 from dataclasses import dataclass
 from typing import Dict
 
@@ -114,8 +113,3 @@ class TamerConfig:
 def field_docs(cls=TamerConfig) -> Dict[str, str]:
     """Return {field name: the docstring written under it} of TamerConfig (or ``cls``)."""
     return _field_docs(cls)
-
-
-def field_names(cls=TamerConfig):
-    """Names of the dataclass fields, in declaration order."""
-    return [f.name for f in dataclasses.fields(cls)]

@@ -86,9 +86,6 @@ class Encoder(nn.Module):
         self.feature_mean.copy_(mean.reshape(FEATURE_SHAPE))
         self.feature_std.copy_(std.reshape(FEATURE_SHAPE).clamp_min(STD_FLOOR))
 
-    def has_feature_stats(self) -> bool:
-        return not (bool((self.feature_mean == 0).all()) and bool((self.feature_std == 1).all()))
-
 
 @torch.no_grad()
 def feature_stats(encoder: Encoder, images: np.ndarray, chunk: int = 256):

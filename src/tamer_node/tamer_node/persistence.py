@@ -32,14 +32,10 @@ import threading
 from typing import Callable, Dict, Iterator, List, Optional, Tuple
 import zlib
 
+from attention_common.run_files import (  # noqa: F401 (the learner's files, named there)
+    CHECKPOINT_DIR, CHECKPOINT_FILE, FEEDBACK_LOG, METRICS_CSV, STEPS_DIR)
 import numpy as np
 import torch
-
-FEEDBACK_LOG = 'feedback_log.jsonl'
-METRICS_CSV = 'metrics.csv'
-CHECKPOINT_DIR = 'checkpoints'
-CHECKPOINT_FILE = 'checkpoint.pt'
-STEPS_DIR = 'steps'
 
 KIND_OBSERVATION, KIND_SALIENCY, KIND_ACTION = 1, 2, 3
 KIND_NAMES = {KIND_OBSERVATION: 'observation', KIND_SALIENCY: 'saliency'}

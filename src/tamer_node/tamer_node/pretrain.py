@@ -25,6 +25,7 @@ from attention_common.joy_actions import NUM_ACTIONS
 import cv2
 from env_node.core import EnvConfig, MontezumaEnv
 import numpy as np
+from saliency_node.saliency import BLUR_RADIUS
 from tamer_node.agent import DEFAULT_ENCODER
 from tamer_node.model import (
     ConvAutoencoder, feature_stats, load_encoder, preprocess, save_encoder, to_input)
@@ -32,7 +33,7 @@ import torch
 import torch.nn.functional as F
 
 ROOM_ONE = 1
-BLUR_KSIZE = (7, 7)  # blur radius 3, as the saliency node's default
+BLUR_KSIZE = (2 * BLUR_RADIUS + 1,) * 2  # the saliency node's default radius
 
 
 def load_expert():

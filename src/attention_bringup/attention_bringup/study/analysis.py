@@ -3,16 +3,17 @@ From trial result files to what the report states (pure: dicts and numbers in, d
 
 Progress to position p means the furthest critical position so far is p or beyond: the first
 step at which the agent stood on p or any later position. Reaching a later position counts for
-the earlier ones too (a jump can carry the agent past a position's 8-pixel radius in one step).
+the earlier ones too (a jump can carry the agent past a position's radius in one step).
 
 Censoring: a trial that never reaches p within its budget has no step count for p. Tables give
 the reach rate (with a Wilson 95 % interval) and the mean steps over the trials that reached p;
 the t-tests on steps to p count an unreached trial as budget + 1 steps (a lower bound of its
 true value, so differences in steps are if anything understated).
 
-Where the agent spends its steps: the fraction of a trial's recorded steps within 8 px of each
-critical position (-1: of none), averaged over trials, with the trainer's mean h. Result files
-written before these fields existed count as unknown (left out), not as zero.
+Where the agent spends its steps: the fraction of a trial's recorded steps within alpha
+(``feedback_node.critical_positions.DEFAULT_RADIUS``) of each critical position (-1: of none),
+averaged over trials, with the trainer's mean h. Result files written before these fields
+existed count as unknown (left out), not as zero.
 """
 
 from typing import Dict, List, Mapping, Optional, Sequence

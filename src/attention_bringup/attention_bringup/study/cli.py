@@ -30,6 +30,7 @@ from attention_bringup.study import analysis as study_analysis
 from attention_bringup.study import figures, report, runner
 from attention_bringup.study.trials import (
     is_usable, load_records, refresh_records, write_json)
+from attention_common.run_files import ANALYSIS_FILE, STUDY_LOG
 from feedback_node.teacher import TRAINERS
 
 DEFAULT_TRIALS = 10
@@ -37,8 +38,6 @@ DEFAULT_STEPS = 10000
 DEFAULT_OUT = 'docs/study'
 DEFAULT_REPORT = 'docs/results.md'
 DEFAULT_RUNS = 'runs/study'
-LOG_FILE = 'study_log.json'
-ANALYSIS_FILE = 'analysis.json'
 EXIT_INTERRUPTED = 130
 
 
@@ -113,7 +112,7 @@ def regenerate_command(options: argparse.Namespace, parallel: int) -> str:
 
 def read_log(out_dir: Path) -> List[dict]:
     try:
-        return json.loads((out_dir / LOG_FILE).read_text())
+        return json.loads((out_dir / STUDY_LOG).read_text())
     except (OSError, ValueError):
         return []
 
@@ -206,7 +205,7 @@ def run_study(options: argparse.Namespace, out_dir: Path) -> Optional[dict]:
         'interrupted': stop.is_set(),
     }
     log = read_log(out_dir) + [entry]
-    write_json(out_dir / LOG_FILE, log)
+    write_json(out_dir / STUDY_LOG, log)
     return entry
 
 

@@ -11,6 +11,8 @@ from typing import List, Mapping, Optional
 
 from attention_bringup.study.analysis import BASELINE, SETTLED_SHARE, TESTED_POSITIONS
 from attention_bringup.study.trials import POSITIONS
+from feedback_node.critical_positions import DEFAULT_RADIUS
+from feedback_node.reward import RewardConfig
 
 ALPHA = 0.05
 
@@ -226,8 +228,8 @@ def _hidden_agent_manner(analysis: Mapping) -> str:
     if None not in feedback:
         text += f', and its mean feedback was {feedback[0]:+.2f} against {feedback[1]:+.2f}'
     return (text + '. That points to passes made while jumping and falling rather than a route '
-            'it learned (a position counts whenever the agent passes within 8 px of it, also '
-            'mid-fall).')
+            f'it learned (a position counts whenever the agent passes within {DEFAULT_RADIUS:g} '
+            'px of it, also mid-fall).')
 
 
 def floor_effect_note(analysis: Mapping) -> str:
@@ -263,11 +265,14 @@ def _split(where: Mapping) -> str:
             f'{_h_text(where["feedback_mean"])}')
 
 
+_THESIS_REWARD = RewardConfig()
 REWARD_RULE = (
     "Reward property: the thesis's synthetic reward (equations 4.1/4.2; feedback_node's "
     '`nearest` variant, used in every condition) gives h = +1 whenever the agent is within '
-    '8 px of *any* critical position, 0 up to 20 px, and -1 farther from all of them or after '
-    'it has stood still for more than 10 steps; it does not pay for moving on along the route.')
+    f'{_THESIS_REWARD.alpha_threshold:g} px of *any* critical position, 0 up to '
+    f'{_THESIS_REWARD.beta_threshold:g} px, and -1 farther from all of them or after it has '
+    f'stood still for more than {_THESIS_REWARD.stationary_steps} steps; it does not pay for '
+    'moving on along the route.')
 
 
 def _settled_text(where: Mapping) -> str:
@@ -351,9 +356,10 @@ REPRODUCTION_NOTES = (
     "Where this reproduction is not the thesis's set-up (design facts, not results): the "
     'critical positions are our own (located with a scripted expert; the thesis does not '
     'publish its coordinates), and a position counts as reached whenever the agent passes '
-    'within 8 px of it, also in mid-jump or mid-fall; the autoencoder was pretrained on Room 1 '
-    'frames of our scripted expert with random detours, not on Atari Grand Challenge frames; '
-    'each feedback is credited to exactly the step it judges. The seed fixes the emulator, the '
+    f'within {DEFAULT_RADIUS:g} px of it, also in mid-jump or mid-fall; the autoencoder was '
+    'pretrained on Room 1 frames of our scripted expert with random detours, not on Atari '
+    'Grand Challenge frames; each feedback is credited to exactly the step it judges. The seed '
+    'fixes the emulator, the '
     "random warm-up, the trainer's random draws and the learner's initial weights and "
     'minibatch sampling. The learner owes minibatch updates at a fixed rate per second of '
     'simulation time (`update_clock: sim`, 6 per simulation second, 0.4 per agent step) besides '

@@ -13,6 +13,7 @@ from attention_bringup.study import discussion, stats
 from attention_bringup.study.analysis import BASELINE, MEASURES, SETTLED_SHARE
 from attention_bringup.study.discussion import _num, fmt_p
 from attention_bringup.study.trials import PLACES, POSITIONS
+from feedback_node.critical_positions import DEFAULT_RADIUS
 
 CONDITION_TEXT = {
     'vanilla': 'Deep TAMER alone: alpha 0, no saliency, no utterances (the baseline).',
@@ -120,7 +121,8 @@ def protocol_section(protocol: Mapping, analysis: Mapping) -> str:
         '### Measures and statistics',
         '',
         '- *Progress to position p* by step t: the furthest critical position so far is p or '
-        'beyond (the agent stood within 8 px of p or a later position; Room 1 only).',
+        f'beyond (the agent stood within {DEFAULT_RADIUS:g} px of p or a later position; Room 1 '
+        'only).',
         '- Reach fractions: Wilson score 95 % intervals over trials. Means: t-based 95 % '
         'intervals (mean ± t(0.975, n-1) · sd / √n).',
         '- Steps to position p are censored: a trial that never got there has no value. The '
@@ -130,9 +132,9 @@ def protocol_section(protocol: Mapping, analysis: Mapping) -> str:
         f"- Welch's unpaired two-sided t-test of each condition against `{BASELINE}` on the "
         "furthest position and steps to positions 1 to 3; effect size Hedges' g (Cohen's d "
         'with pooled sd, small-sample corrected; sign = condition minus vanilla). p-values '
-        'are given raw and Holm-adjusted over all tests in the table. The t distribution is '
-        'computed in `study/stats.py` (incomplete beta function), tested against closed forms '
-        'and numerical integration.',
+        'are given raw and Holm-adjusted over all tests in the table. The t distribution, '
+        "Welch's test and the Wilson intervals are scipy.stats' (`study/stats.py`), tested "
+        "against published values (t tables, R's `t.test`, Newcombe 1998).",
         '- Key rate: fraction of trials in which the agent picked up the key at least once. '
         'Episodes: episodes begun (an episode ends on game over or leaving Room 1). Lives '
         "used: lives lost over the trial. Learner updates / step: the tamer's gradient "
@@ -163,8 +165,8 @@ def where_table(analysis: Mapping, present: Sequence[str]) -> str:
     if len(present) > 1:
         rows.append(where_row('all', analysis['where']))
     return '\n'.join([
-        '### Where the agent spends its steps (fraction of steps within 8 px of each critical '
-        'position; mean h)',
+        '### Where the agent spends its steps (fraction of steps within '
+        f'{DEFAULT_RADIUS:g} px of each critical position; mean h)',
         '',
         'Mean over full trials of the share of their recorded steps near each position '
         "(none: near no critical position); mean h: the synthetic trainer's mean feedback "

@@ -19,8 +19,9 @@ import time
 from typing import Callable, List, Optional, Sequence, Tuple
 
 from attention_bringup.study.trials import (
-    build_record, is_usable, LAUNCHER_LOG, read_json, trial_path, write_json)
+    build_record, is_usable, read_json, trial_path, write_json)
 from attention_common.isolation import isolated_environ
+from attention_common.run_files import LAUNCHER_LOG
 
 STOP_GRACE_S = 90.0
 """After its SIGINT, how long a launcher may take to stop its nodes before SIGTERM."""

@@ -1,105 +1,33 @@
 """
-Statistics for small samples, in plain Python (no scipy).
+Statistics for small samples, the distributions and tests from scipy.stats.
 
-Student's t distribution through the regularized incomplete beta function (a continued fraction
-evaluated with the modified Lentz method), Welch's unpaired t-test, t-based confidence intervals
-of a mean, Wilson score intervals of a proportion, Cohen's d / Hedges' g and Holm's adjustment.
+Welch's unpaired t-test, t-based confidence intervals of a mean, Wilson score intervals of a
+proportion, Cohen's d / Hedges' g and Holm's adjustment, as plain floats and dataclasses.
 """
 
 from dataclasses import dataclass
-import functools
 import math
+import statistics
 from typing import List, Optional, Sequence, Tuple
+import warnings
 
-Z_975 = 1.959963984540054
-"""The 97.5 % quantile of the standard normal distribution (two-sided 95 %)."""
-
-_TINY = 1e-300
-_EPS = 1e-15
+from scipy import stats as scipy_stats
 
 
-def _beta_fraction(a: float, b: float, x: float) -> float:
-    """Continued fraction of I_x(a, b): 1 / (1 + d1 / (1 + d2 / (1 + ...)))."""
-    value = _TINY
-    c, d = value, 0.0
-    for j in range(1, 2000):
-        if j == 1:
-            numerator = 1.0
-        else:
-            k = j - 1  # d_k
-            m = k // 2
-            if k % 2:
-                numerator = -(a + m) * (a + b + m) * x / ((a + 2 * m) * (a + 2 * m + 1))
-            else:
-                numerator = m * (b - m) * x / ((a + 2 * m - 1) * (a + 2 * m))
-        d = 1.0 + numerator * d
-        d = 1.0 / (d if abs(d) > _TINY else _TINY)
-        c = 1.0 + numerator / c
-        c = c if abs(c) > _TINY else _TINY
-        delta = c * d
-        value *= delta
-        if abs(delta - 1.0) < _EPS:
-            break
-    return value
-
-
-def regularized_beta(x: float, a: float, b: float) -> float:
-    """Return I_x(a, b), the regularized incomplete beta function, for 0 <= x <= 1."""
-    if not 0.0 <= x <= 1.0:
-        raise ValueError(f'x must be in [0, 1], got {x}')
-    if x in (0.0, 1.0):
-        return x
-    log_front = (a * math.log(x) + b * math.log1p(-x)
-                 - (math.lgamma(a) + math.lgamma(b) - math.lgamma(a + b)))
-    if x < (a + 1.0) / (a + b + 2.0):
-        return math.exp(log_front) * _beta_fraction(a, b, x) / a
-    return 1.0 - math.exp(log_front) * _beta_fraction(b, a, 1.0 - x) / b
-
-
-def t_two_sided_p(t: float, df: float) -> float:
-    """Return P(|T| >= |t|) for Student's t with ``df`` (> 0, not necessarily whole) degrees."""
-    if df <= 0:
-        raise ValueError(f'degrees of freedom must be positive, got {df}')
-    if math.isinf(t):
-        return 0.0
-    return regularized_beta(df / (df + t * t), df / 2.0, 0.5)
-
-
-def t_cdf(t: float, df: float) -> float:
-    """Return P(T <= t) for Student's t with ``df`` degrees of freedom."""
-    tail = t_two_sided_p(t, df) / 2.0
-    return 1.0 - tail if t > 0 else tail
-
-
-@functools.lru_cache(maxsize=256)
 def t_quantile(q: float, df: float) -> float:
-    """Return t with P(T <= t) = q (bisection on ``t_cdf``; |error| < 1e-10)."""
+    """Return t with P(T <= t) = q for Student's t with ``df`` degrees of freedom."""
     if not 0.0 < q < 1.0:
         raise ValueError(f'q must be in (0, 1), got {q}')
-    if q < 0.5:
-        return -t_quantile(1.0 - q, df)
-    low, high = 0.0, 1.0
-    while t_cdf(high, df) < q:
-        low, high = high, high * 2.0
-    while high - low > 1e-10 * max(1.0, high):
-        middle = (low + high) / 2.0
-        if t_cdf(middle, df) < q:
-            low = middle
-        else:
-            high = middle
-    return (low + high) / 2.0
+    return float(scipy_stats.t.ppf(q, df))
 
 
 def mean(values: Sequence[float]) -> float:
-    return math.fsum(values) / len(values)
+    return statistics.fmean(values)
 
 
 def sample_sd(values: Sequence[float]) -> float:
     """Return the standard deviation with Bessel's correction (n - 1); 0 for one value."""
-    if len(values) < 2:
-        return 0.0
-    centre = mean(values)
-    return math.sqrt(math.fsum((v - centre) ** 2 for v in values) / (len(values) - 1))
+    return statistics.stdev(values) if len(values) >= 2 else 0.0
 
 
 @dataclass(frozen=True)
@@ -127,17 +55,14 @@ def mean_ci(values: Sequence[float], level: float = 0.95) -> Estimate:
     return Estimate(n, centre, sd, centre - half, centre + half)
 
 
-def wilson_interval(successes: int, n: int, z: float = Z_975) -> Tuple[float, float]:
+def wilson_interval(successes: int, n: int, level: float = 0.95) -> Tuple[float, float]:
     """Return the Wilson score interval of a proportion (95 % by default); (0, 1) for n = 0."""
     if n == 0:
         return 0.0, 1.0
     if not 0 <= successes <= n:
         raise ValueError(f'successes must be in [0, {n}], got {successes}')
-    p = successes / n
-    z2 = z * z
-    centre = (p + z2 / (2 * n)) / (1 + z2 / n)
-    half = z * math.sqrt(p * (1 - p) / n + z2 / (4 * n * n)) / (1 + z2 / n)
-    return max(0.0, centre - half), min(1.0, centre + half)
+    interval = scipy_stats.binomtest(successes, n).proportion_ci(level, method='wilson')
+    return float(interval.low), float(interval.high)
 
 
 @dataclass(frozen=True)
@@ -182,9 +107,9 @@ def welch_t_test(a: Sequence[float], b: Sequence[float]) -> WelchResult:
     """
     Return Welch's two-sided unpaired t-test of a against b.
 
-    t = (mean_a - mean_b) / sqrt(s_a^2 / n_a + s_b^2 / n_b), degrees of freedom by the
-    Welch-Satterthwaite equation. When both samples have no variance the test is undefined:
-    p is None (and ``note`` says so), whether or not the means differ.
+    scipy's ``ttest_ind(equal_var=False)``: degrees of freedom by the Welch-Satterthwaite
+    equation. When both samples have no variance the test is undefined: p is None (and
+    ``note`` says so), whether or not the means differ.
     """
     a = [float(v) for v in a]
     b = [float(v) for v in b]
@@ -195,15 +120,18 @@ def welch_t_test(a: Sequence[float], b: Sequence[float]) -> WelchResult:
         return WelchResult(n_a, n_b, centre_a, centre_b, centre_a - centre_b, None, None, None,
                            None, None, 'fewer than two values')
     mean_a, mean_b = mean(a), mean(b)
-    var_a, var_b = sample_sd(a) ** 2 / n_a, sample_sd(b) ** 2 / n_b
     difference = mean_a - mean_b
     g, d = hedges_g(a, b), cohens_d(a, b)
-    if var_a + var_b == 0:
+    constant = sample_sd(a) == 0, sample_sd(b) == 0
+    if all(constant):
         note = 'identical constant samples' if difference == 0 else 'constant samples'
         return WelchResult(n_a, n_b, mean_a, mean_b, difference, None, None, None, g, d, note)
-    t = difference / math.sqrt(var_a + var_b)
-    df = (var_a + var_b) ** 2 / (var_a ** 2 / (n_a - 1) + var_b ** 2 / (n_b - 1))
-    return WelchResult(n_a, n_b, mean_a, mean_b, difference, t, df, t_two_sided_p(t, df), g, d)
+    with warnings.catch_warnings():
+        if any(constant):  # exact (all trials censored, say), yet scipy warns of cancellation
+            warnings.simplefilter('ignore', RuntimeWarning)
+        test = scipy_stats.ttest_ind(a, b, equal_var=False)
+    return WelchResult(n_a, n_b, mean_a, mean_b, difference, float(test.statistic),
+                       float(test.df), float(test.pvalue), g, d)
 
 
 def detectable_effect(n_per_group: int, power: float = 0.8, alpha: float = 0.05) -> float:

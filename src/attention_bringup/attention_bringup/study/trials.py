@@ -20,7 +20,8 @@ from pathlib import Path
 from typing import Dict, List, Mapping, Optional, Sequence, Tuple
 
 from attention_bringup.params import load_params_file, node_params, ParamsFileError
-from attention_bringup.report import PARAMS_FILE, PROGRESS_FILE, SUMMARY_FILE
+from attention_common.run_files import (
+    LAUNCHER_LOG, node_log, PARAMS_FILE, PROGRESS_FILE, SUMMARY_FILE)
 
 FORMAT = 1
 """Version of the result file layout."""
@@ -39,9 +40,6 @@ CRASHED = 'crashed'
 TIMEOUT = 'timeout'
 USABLE_OUTCOMES = (COMPLETED, COMPLETED_UNCLEAN)
 """Outcomes whose full budget of steps was recorded (the analysis uses these)."""
-
-LAUNCHER_LOG = 'attention_train.log'
-"""The launcher's own terminal output, in the run folder."""
 
 # (node, parameter) pairs copied into the result file: what defines a condition and a trial.
 RECORDED_PARAMETERS = (
@@ -255,7 +253,7 @@ def build_record(condition: str, seed: int, budget: int, run_dir: Path,
             'exit_text': summary.get('exit_text'),
             'failed_node': failed,
             'launcher_output_tail': read_tail(run_dir / LAUNCHER_LOG),
-            'node_log_tail': read_tail(run_dir / 'logs' / f'{failed}.log') if failed else '',
+            'node_log_tail': read_tail(run_dir / node_log(failed)) if failed else '',
         }
     return record
 

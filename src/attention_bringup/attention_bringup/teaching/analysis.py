@@ -12,11 +12,12 @@ from typing import Dict, List, Mapping, Optional, Sequence
 
 from attention_bringup.study import stats
 from attention_bringup.teaching.settings import COMPARISONS, SETTINGS, TARGETS
+from feedback_node.critical_positions import DEFAULT_RADIUS
 
 MEASURES = {
     'steps_to_key': 'steps to the first key (no key: the budget)',
     'furthest_stood': 'furthest critical position stood on',
-    'furthest_passed': 'furthest critical position passed (within 8 px)',
+    'furthest_passed': f'furthest critical position passed (within {DEFAULT_RADIUS:g} px)',
     'lives_lost': 'lives lost',
 }
 

@@ -22,12 +22,12 @@ from attention_bringup.study import runner
 from attention_bringup.study.trials import load_records, refresh_records, write_json
 from attention_bringup.teaching import analysis, report
 from attention_bringup.teaching.settings import SEEDS, SETTINGS
+from attention_common.run_files import ANALYSIS_FILE, TEACHING_LOG
 
 DEFAULT_OUT = 'docs/teaching'
 DEFAULT_REPORT = 'docs/teaching.md'
 DEFAULT_RUNS = 'runs/teaching'
 DEFAULT_STEPS = 10000
-LOG_FILE = 'teaching_log.json'
 
 
 def argument_parser() -> argparse.ArgumentParser:
@@ -91,7 +91,7 @@ def run(options) -> None:
     except KeyboardInterrupt:
         stop.set()
         raise
-    log_path = Path(options.out) / LOG_FILE
+    log_path = Path(options.out) / TEACHING_LOG
     log = json.loads(log_path.read_text()) if log_path.exists() else []
     log.append({'argv': sys.argv[1:], 'trials_run': len(records), 'parallel': options.parallel,
                 'wall_time_s': round(time.monotonic() - started, 1), 'cpus': os.cpu_count()})
@@ -119,7 +119,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         run(options)
     by_setting = load(options)
     result = analysis.analyse(by_setting, options.steps)
-    write_json(Path(options.out) / 'analysis.json', result)
+    write_json(Path(options.out) / ANALYSIS_FILE, result)
     report.write(Path(options.report), Path(options.out), result, by_setting, options)
     _say(f'wrote {options.report}')
     return 0

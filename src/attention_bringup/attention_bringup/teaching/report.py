@@ -11,8 +11,11 @@ import os
 from pathlib import Path
 from typing import List, Mapping, Optional, Sequence
 
+from attention_bringup.progress import ALIVE_STEPS
 from attention_bringup.teaching.analysis import MEASURES
 from attention_bringup.teaching.settings import SETTINGS
+from attention_common.run_files import TEACHING_LOG
+from feedback_node.critical_positions import DEFAULT_RADIUS
 
 FIGURE = 'key_by_step.png'
 
@@ -123,7 +126,7 @@ def target_lines(result: Mapping) -> List[str]:
 def write(path: Path, out_dir: Path, result: Mapping, by_setting: Mapping, options) -> None:
     drawn = draw(result, out_dir / FIGURE)
     figure = os.path.relpath(out_dir / FIGURE, path.parent)
-    log_path = out_dir / 'teaching_log.json'
+    log_path = out_dir / TEACHING_LOG
     log = json.loads(log_path.read_text()) if log_path.exists() else []
     elapsed = sum(entry.get('wall_time_s', 0.0) for entry in log)
     command = ('.venv/bin/attention_teaching --parallel 2' if options.settings == list(SETTINGS)
@@ -135,7 +138,7 @@ def write(path: Path, out_dir: Path, result: Mapping, by_setting: Mapping, optio
         f'{sum(s["n"] for s in result["settings"].values())} trials of '
         f'{result["budget"]:,} agent steps; running them took {elapsed / 60:.0f} min of wall '
         f'time over {len(log)} invocation(s), two trials side by side on 2 cores '
-        f'(`{out_dir.name}/teaching_log.json`). The command is resumable (finished trials are '
+        f'(`{out_dir.name}/{TEACHING_LOG}`). The command is resumable (finished trials are '
         'skipped); `--report-only` rewrites this file without running anything.',
         '',
         'Every trial is the real graph (env_node, feedback_node with `trainer:=teacher`, '
@@ -152,8 +155,9 @@ def write(path: Path, out_dir: Path, result: Mapping, by_setting: Mapping, optio
     text += ['', '## Targets', ''] + target_lines(result)
     text += ['', '## Results', ''] + settings_table(result)
     text += ['', '*Furthest stood*: the furthest critical position the agent stood on (within '
-             '8 px, on the ground, a ladder or the rope, alive 15 steps later). *Furthest '
-             'passed*: within 8 px at any moment, in mid-air or dying too; this is the measure '
+             f'{DEFAULT_RADIUS:g} px, on the ground, a ladder or the rope, alive {ALIVE_STEPS} '
+             f'steps later). *Furthest passed*: within {DEFAULT_RADIUS:g} px at any moment, in '
+             'mid-air or dying too; this is the measure '
              'the Room 1 study (`docs/results.md`) used. *Feedback*: what the learner '
              'received (`feedback/received` of its metrics). *Updates / step*: learner updates '
              '(immediate and minibatch) per agent '
