@@ -10,6 +10,9 @@ Benchmark: the whole graph (four processes over DDS) against the same loop in on
    resident memory and CPU time at the end.
 2. In process: the same cores without ROS (env core, synthetic trainer, saliency maker,
    TamerAgent with its learner thread), one step after the other, for ``--inprocess-steps``.
+   It waits for its learner when that owes ``PACE_UPDATES`` minibatch updates: otherwise it
+   outruns it and the learner drops owed updates (0.30 updates per step against the graph's
+   0.62 in one run), which would compare the graph with an agent that learns less.
 
 The graph's nodes use the executor ``ATTENTION_EXECUTOR`` names (``events`` unless set; see
 ``attention_common/executors.py``). Prints a markdown table (targets: graph >= 0.7 x
@@ -32,6 +35,8 @@ BIN = Path(sys.executable).parent
 RATIO_TARGET = 0.7
 P50_TARGET_MS = 2.0
 P99_TARGET_MS = 5.0
+PACE_UPDATES = 2.0
+"""The in-process loop waits while its learner owes this many minibatch updates or more."""
 
 
 def graph_run(steps: int, workdir: Path) -> dict:
@@ -60,6 +65,7 @@ def graph_run(steps: int, workdir: Path) -> dict:
         'act_p99_ms': metrics.get('act/latency_p99_ms'),
         'saliency_per_s': summary['message_counts']['saliency'] / training_s,
         'updates_per_s': float(metrics.get('train/updates', 0)) / training_s,
+        'skipped_updates': metrics.get('train/skipped_updates'),
         'cpu_ms_per_step': {node: 1000.0 * seconds / summary['steps']
                             for node, seconds in summary.get('cpu_s', {}).items() if seconds},
         'rss_mb': {node: values.get('VmRSS', 0) / 1024.0
@@ -126,6 +132,8 @@ def in_process_run(steps: int, workdir: Path) -> dict:
         render(timeline.add_observation(step.sim_time_ns,
                                         (step.observation, maker.observe(step.observation))))
         action = agent.on_observation(step.sim_time_ns, step.observation)
+        while agent.worker.updates_behind() >= PACE_UPDATES:
+            time.sleep(0.0002)  # the same learning per step as the graph: none skipped
         step = env.step(action)
         if step.done:
             judge(step)  # the last action is judged; then the episode starts again
@@ -143,6 +151,7 @@ def in_process_run(steps: int, workdir: Path) -> dict:
         'act_p99_ms': metrics.get('act/latency_p99_ms'),
         'saliency_per_s': saliency_images / elapsed,
         'updates_per_s': float(metrics.get('train/updates', 0)) / elapsed,
+        'skipped_updates': metrics.get('train/skipped_updates'),
     }
 
 
@@ -170,6 +179,8 @@ def table(graph: dict, local: dict) -> str:
         ('learner updates/s', _fmt(graph['updates_per_s']), _fmt(local['updates_per_s']), ''),
         ('learner updates per step', _fmt(graph['updates_per_s'] / graph['steps_per_s'], 2),
          _fmt(local['updates_per_s'] / local['steps_per_s'], 2), ''),
+        ('minibatch updates skipped (the learner fell behind)', graph['skipped_updates'],
+         local['skipped_updates'], ''),
     ]
     for node in sorted(graph['rss_mb']):
         rows.append((f'{node} resident memory after {graph["steps"]} steps (MB; peak)',

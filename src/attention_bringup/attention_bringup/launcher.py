@@ -35,6 +35,7 @@ from attention_bringup.processes import (
     cpu_seconds, exit_description, log_tail, NodeGroup, resident_memory_kb)
 from attention_bringup.progress import format_bar, ProgressTracker
 from attention_common.dds_memory import use_freed_payloads
+from attention_common.executors import make_executor
 from attention_common.isolation import apply_to_this_process, isolated_environ, reserved_domain
 from attention_common.run_files import (
     CHECKPOINT_DIR, FEEDBACK_LOG, GALLERY_FILE, LEARNING_CURVE_FILE, LOGS_DIR, METRICS_CSV,
@@ -109,7 +110,6 @@ class Launcher:
     def _run(self) -> int:
         import rclpy
         from rclpy.context import Context
-        from rclpy.executors import SingleThreadedExecutor
         from rclpy.signals import SignalHandlerOptions
 
         from attention_bringup.monitor import GraphMonitor, spin_until_shutdown
@@ -132,7 +132,7 @@ class Launcher:
         gallery = GalleryCollector()
         monitor = GraphMonitor(tracker, gallery, watch_plain=not self.plan.options.synthetic,
                                context=context)
-        executor = SingleThreadedExecutor(context=context)
+        executor = make_executor(context=context)  # spun on a thread: spin_once, as it must
         executor.add_node(monitor)
         spinner = threading.Thread(target=spin_until_shutdown,
                                    args=(executor, context, self.err), daemon=True)

@@ -81,6 +81,13 @@ class LearnerWorker(threading.Thread):
         if self._sim_now >= self._wake_at:
             self._wake.set()
 
+    def updates_behind(self) -> float:
+        """Return the minibatch updates owed up to the newest tick (a benchmark paces on it)."""
+        schedule, now = self.schedule, self._clock()
+        if not schedule.started or now is None:
+            return 0.0
+        return schedule.owed + max(0.0, now - schedule.last_reading) * schedule.rate_hz
+
     def stats(self) -> dict:
         with self._lock:
             stats = dict(self.counters)

@@ -28,6 +28,7 @@ import os
 from pathlib import Path
 import queue
 import struct
+import sys
 import threading
 from typing import Callable, Dict, Iterator, List, Optional, Tuple
 import zlib
@@ -304,4 +305,8 @@ class DiskWriter(threading.Thread):
             job()
         except Exception as error:  # a full disk must not kill the node
             self.errors += 1
-            self._on_error(f'disk write failed: {error!r}')
+            try:
+                self._on_error(f'disk write failed: {error!r}')
+            except Exception as report_error:  # nor a failing logger this thread
+                sys.stderr.write(f'disk write failed: {error!r} (and reporting it: '
+                                 f'{report_error!r})\n')
