@@ -186,6 +186,7 @@ def test_plan_overrides_follow_the_options(tmp_path):
     assert isinstance(plan.overrides['env_node']['rate_hz'], float)
     assert plan.overrides['feedback_node']['synthetic'] is False
     assert plan.overrides['tamer_node']['credit'] == 'window'
+    assert plan.overrides['tamer_node']['pace_updates'] == 0.0  # the env does not wait
     assert plan.overrides['env_node']['seed'] == 7
     for node in graph.NODES:  # every node that has a seed gets the run's seed
         if 'seed' in load_params_file(graph.graph_file()).get(node, {}):

@@ -25,7 +25,7 @@ FRAMES = RNG.integers(0, 256, (40, 210, 160, 3), np.uint8)
 
 def make_agent(run_dir, **changes):
     settings = {'update_rate_hz': 50.0, 'checkpoint_period_s': 0.0, 'saliency_timeout_s': 0.3,
-                'metrics_period_s': 0.5}
+                'metrics_period_s': 0.5, 'pace_updates': 0.0}  # pacing: its own tests
     settings.update(changes)
     config = TamerConfig(**settings)
     torch.manual_seed(0)
@@ -252,8 +252,10 @@ def test_a_feedback_is_never_written_behind_a_checkpoint(agents, tmp_path):
 
 
 # Acting and training run apart.
-def test_acting_never_waits_for_training_or_disk(agents):
-    agent = agents()
+@pytest.mark.parametrize('pace_updates', [0.0, 2.0])
+def test_acting_never_waits_for_training_or_disk(agents, pace_updates):
+    # Paced, a learner stuck in an update holds each answer pace_max_s at most.
+    agent = agents(pace_updates=pace_updates, pace_max_s=0.02)
     release = threading.Event()
     entered = threading.Event()
     train_step = agent.learner.train_step
@@ -274,6 +276,25 @@ def test_acting_never_waits_for_training_or_disk(agents):
     actor.join(10)
     release.set()
     assert answered and len(answered[0]) == 50 and None not in answered[0].values()
+    assert (agent.counters['act/paced'] > 0) is (pace_updates > 0)
+
+
+@pytest.mark.parametrize('pace_updates', [0.0, 2.0])
+def test_a_paced_actor_never_outruns_its_learner(agents, pace_updates):
+    """Stepping faster than the learner trains drops owed updates, unless the actor waits."""
+    agent = agents(update_rate_hz=150.0, update_backlog_s=1.0, immediate_update=False,
+                   pace_updates=pace_updates, pace_max_s=1.0)  # 10 updates owed per step
+    for i in range(60):  # from the first feedback on, also before the learner has used it
+        play(agent, 1, first=i)
+        agent.on_feedback(1.0 if i % 2 else -1.0, 'stamped', stamp(i))
+    assert processed(agent, 60)
+    assert wait_until(lambda: agent.worker.updates_behind() < 1.0, 30)
+    stats = agent.worker.stats()
+    if pace_updates:
+        assert stats['train/skipped_updates'] == 0 and agent.counters['act/paced'] > 0
+        assert stats['train/minibatch_updates'] >= 10 * 57  # what 59 steps owe, minus 2
+    else:
+        assert stats['train/skipped_updates'] > 0 and agent.counters['act/paced'] == 0
 
 
 def test_weight_snapshots_reach_the_acting_copy(agents):

@@ -10,9 +10,10 @@ Benchmark: the whole graph (four processes over DDS) against the same loop in on
    resident memory and CPU time at the end.
 2. In process: the same cores without ROS (env core, synthetic trainer, saliency maker,
    TamerAgent with its learner thread), one step after the other, for ``--inprocess-steps``.
-   It waits for its learner when that owes ``PACE_UPDATES`` minibatch updates: otherwise it
-   outruns it and the learner drops owed updates (0.30 updates per step against the graph's
-   0.62 in one run), which would compare the graph with an agent that learns less.
+   Both agents wait for their learner before acting when it owes more than ``pace_updates``
+   minibatch updates (tamer_node's default): without it the faster loop outran its learner,
+   which dropped owed updates (0.30 updates per step in process against the graph's 0.62 in
+   one run), and the comparison was with an agent that learned less.
 
 The graph's nodes use the executor ``ATTENTION_EXECUTOR`` names (``events`` unless set; see
 ``attention_common/executors.py``). Prints a markdown table (targets: graph >= 0.7 x
@@ -35,8 +36,6 @@ BIN = Path(sys.executable).parent
 RATIO_TARGET = 0.7
 P50_TARGET_MS = 2.0
 P99_TARGET_MS = 5.0
-PACE_UPDATES = 2.0
-"""The in-process loop waits while its learner owes this many minibatch updates or more."""
 
 
 def graph_run(steps: int, workdir: Path) -> dict:
@@ -132,8 +131,6 @@ def in_process_run(steps: int, workdir: Path) -> dict:
         render(timeline.add_observation(step.sim_time_ns,
                                         (step.observation, maker.observe(step.observation))))
         action = agent.on_observation(step.sim_time_ns, step.observation)
-        while agent.worker.updates_behind() >= PACE_UPDATES:
-            time.sleep(0.0002)  # the same learning per step as the graph: none skipped
         step = env.step(action)
         if step.done:
             judge(step)  # the last action is judged; then the episode starts again

@@ -74,7 +74,10 @@ class ActingModel:
         newer = slot.newer_than(self.version)
         if newer is not None:
             self.version, state = newer
-            self.model.load_state_dict(state)
+            # A frozen encoder's snapshot is the head only (Learner.snapshot).
+            unexpected = self.model.load_state_dict(state, strict=False).unexpected_keys
+            if unexpected:
+                raise KeyError(f'a weight snapshot with unknown tensors: {unexpected}')
 
     def predict(self, image: torch.Tensor) -> torch.Tensor:
         with torch.inference_mode():
@@ -233,6 +236,12 @@ class ActingPath:
     def _act(self, record, started: Optional[float], image=None) -> int:
         if record.action is not None:
             return record.action  # the env re-sent this step: answer it the same way
+        waited = self.worker.wait_caught_up(self.config.pace_updates, self.config.pace_max_s)
+        if waited > 0.0:  # the learner's turn first: the same learning per step however fast
+            self.counters['act/paced'] += 1
+            self.counters['act/paced_ms'] += round(1e3 * waited, 3)
+            if started is not None:
+                started += waited  # act latency is the agent's own time
         self.actor.refresh(self.slot)
         kind = self.config.input_image if image is None else 'observation'
         image = record.image(kind) if image is None else image

@@ -65,7 +65,17 @@ class TamerConfig:
     greedy_margin: float = 0.0
     """0: the thesis's greedy policy (argmax, ties to the lowest action). Above 0: H clipped
     to [-1, 1], actions within this margin of the best are tied, ties broken at random
-    (attention_train sets 0.1 with the teacher; see worker.ActingModel)."""
+    (attention_train sets 0.1 with the teacher; see acting.ActingModel)."""
+    pace_updates: float = 2.0
+    """The actor waits before it acts while the learner owes more than this many minibatch
+    updates (0 = never): a lockstep graph that steps faster than its learner trains would
+    otherwise drop owed updates, and the study's conditions would not learn equally. In real
+    time (15 steps/s) the learner keeps up and the actor never waits."""
+    pace_max_s: float = 0.25
+    """Longest wall time one such wait lasts."""
+    learner_nice: int = 10
+    """Niceness the learner thread adds to its own (Linux, 0-19): on a busy machine acting, the
+    graph's critical path, gets the CPU first and the learner takes what is left (0: equal)."""
     seed: int = 0
     """Seeds the head's initial weights and minibatch sampling."""
     encoder_path: str = ''
@@ -104,6 +114,9 @@ class TamerConfig:
             'metrics_period_s': self.metrics_period_s > 0.0,
             'head_hidden': self.head_hidden >= 1,
             'greedy_margin': 0.0 <= self.greedy_margin <= 2.0,
+            'learner_nice': 0 <= self.learner_nice <= 19,
+            'pace_updates': self.pace_updates >= 0.0,
+            'pace_max_s': self.pace_max_s >= 0.0,
         }
         for name, ok in checks.items():
             if not ok:

@@ -20,7 +20,7 @@ AGENT_COUNTERS = (
     'act/count', 'act/fallback_observation', 'drop/observation', 'drop/saliency',
     'drop/observation_stamp', 'drop/saliency_stamp', 'session/restarts',
     'utterance/count', 'utterance/empty', 'utterance/too_long', 'feedback/logged',
-    'disk/feedback_log_errors',
+    'disk/feedback_log_errors', 'act/paced', 'act/paced_ms',
 )
 """Counted by the acting path, the intake and the node (``TamerAgent.counters``)."""
 

@@ -67,8 +67,17 @@ class Learner:
         return terms
 
     def snapshot(self) -> Dict[str, torch.Tensor]:
-        """Copy the weights for the acting model (never shares memory with training)."""
-        return {name: tensor.detach().clone() for name, tensor in self.model.state_dict().items()}
+        """
+        Copy the weights for the acting model (never shares memory with training).
+
+        A frozen encoder never changes: only the head is copied (and loaded by the actor), so
+        an update costs the actor a few small tensors, not the whole model.
+        """
+        state = self.model.state_dict()
+        if self.model.freeze_encoder:
+            state = {name: tensor for name, tensor in state.items()
+                     if not name.startswith('encoder.')}
+        return {name: tensor.detach().clone() for name, tensor in state.items()}
 
     def state_dict(self) -> dict:
         return {'model': self.model.state_dict(), 'optimizer': self.optimizer.state_dict(),

@@ -20,6 +20,7 @@ metrics say so. ``update_clock: wall`` is the old fixed rate per wall second (no
 
 import collections
 import math
+import os
 from pathlib import Path
 import threading
 import time
@@ -56,7 +57,9 @@ class LearnerWorker(threading.Thread):
         self._rng = np.random.default_rng(config.seed)
         self._inbox: 'collections.deque[FeedbackEvent]' = collections.deque()
         self._pending: 'collections.deque[FeedbackEvent]' = collections.deque()
+        self._first_feedback_at: Optional[float] = None  # see updates_behind
         self._wake = threading.Event()
+        self._updated = threading.Event()  # set after every update (a paced actor waits on it)
         self._stopping = threading.Event()
         self._lock = threading.Lock()  # guards counters and last losses for readers
         self.counters = collections.Counter(dict.fromkeys(LEARNER_COUNTERS, 0))
@@ -68,6 +71,8 @@ class LearnerWorker(threading.Thread):
 
     # Producers (any thread).
     def submit(self, event: FeedbackEvent) -> None:
+        if self._first_feedback_at is None and event.status == 'ok' and event.now is not None:
+            self._first_feedback_at = self._event_time(event)
         self._inbox.append(event)
         self._wake.set()
 
@@ -82,11 +87,47 @@ class LearnerWorker(threading.Thread):
             self._wake.set()
 
     def updates_behind(self) -> float:
-        """Return the minibatch updates owed up to the newest tick (a benchmark paces on it)."""
+        """
+        Return the minibatch updates owed up to the newest tick (what the actor paces on).
+
+        Before the learner has started its schedule, what it will owe from the first usable
+        feedback on (it starts there): at start-up the learner is slow and the actor, not
+        held back yet, had run far enough ahead for the learner to drop owed updates.
+        """
         schedule, now = self.schedule, self._clock()
-        if not schedule.started or now is None:
+        if now is None:
             return 0.0
+        if not schedule.started:
+            first = self._first_feedback_at
+            return 0.0 if first is None else max(0.0, now - first) * schedule.rate_hz
         return schedule.owed + max(0.0, now - schedule.last_reading) * schedule.rate_hz
+
+    def _event_time(self, event: FeedbackEvent) -> float:
+        """The schedule's clock reading of an event's arrival (sim or wall seconds)."""
+        return event.now / 1e9 if self.config.update_clock == 'sim' else event.arrived
+
+    def wait_caught_up(self, limit: float, timeout_s: float) -> float:
+        """
+        Wait while the learner owes more than ``limit`` minibatch updates; return the wait (s).
+
+        Called by the acting path before it acts (``pace_updates``): in lockstep the graph then
+        never outruns its learner, which would drop owed updates. ``limit`` 0 never waits;
+        ``timeout_s`` bounds one wait (a learner that stopped never stalls the actor).
+        """
+        if limit <= 0.0 or self.updates_behind() <= limit:
+            return 0.0
+        started = time.monotonic()
+        deadline = started + timeout_s
+        self._wake.set()
+        while self.is_alive() and not self._stopping.is_set():
+            left = deadline - time.monotonic()
+            if left <= 0.0:
+                break
+            self._updated.clear()
+            if self.updates_behind() <= limit:
+                break
+            self._updated.wait(min(left, 0.005))
+        return time.monotonic() - started
 
     def stats(self) -> dict:
         with self._lock:
@@ -124,6 +165,7 @@ class LearnerWorker(threading.Thread):
 
     # The thread.
     def run(self) -> None:
+        lower_thread_priority(self.config.learner_nice, self._log)
         schedule = self.schedule
         checkpoints = CheckpointClock(self.config.checkpoint_period_s)
         next_checkpoint = math.inf
@@ -187,8 +229,7 @@ class LearnerWorker(threading.Thread):
             samples = self.process(event, self.history)
             if samples and not self.schedule.started:
                 # Minibatches are owed from the first sample's feedback on (its arrival).
-                self.schedule.start(event.now / 1e9 if self.config.update_clock == 'sim'
-                                    else event.arrived)
+                self.schedule.start(self._event_time(event))
             fresh += samples
         if fresh and self.config.immediate_update:
             # Deep TAMER's immediate update on the new feedback's samples. Events that came
@@ -219,6 +260,7 @@ class LearnerWorker(threading.Thread):
             self._log('warn', f'update skipped: the loss is not finite ({losses["loss"]})')
             return
         self.slot.publish(self.learner.updates, self.learner.snapshot())
+        self._updated.set()
         with self._lock:
             self._period.add(losses)
             self.counters['train/updates'] += 1
@@ -289,3 +331,14 @@ class _PeriodLosses:
             'train/period_updates': self.updates,
             'train/period_l2_updates': self.l2_updates,
         }
+
+
+def lower_thread_priority(nice: int, log: Callable[[str, str], None]) -> None:
+    """Add ``nice`` to the calling thread's niceness (Linux threads have their own)."""
+    if nice <= 0:
+        return
+    try:
+        tid = threading.get_native_id()
+        os.setpriority(os.PRIO_PROCESS, tid, os.getpriority(os.PRIO_PROCESS, tid) + nice)
+    except (AttributeError, OSError) as error:  # not Linux, or not allowed: run as it is
+        log('warn', f'learner thread priority left as it is ({error})')
