@@ -14,8 +14,9 @@ of 18 KeyValue pairs (like env_status) and a rosgraph_msgs/Clock.
    is the process's CPU over the whole sending window (adds DDS's own threads, e.g. reliability
    traffic, and the pacing loop), both per message.
 2. Subscribers: separate processes (this file with ``--subscriber``), each spinning its own node
-   in a SingleThreadedExecutor. Each reports its process CPU time from the last warm-up message
-   to the last measured one, per message received in between: wait, take, deserialize into
+   in the executor ``--executor`` names (``events``, the graph's, or ``single``). Each reports
+   its process CPU time from the last warm-up message to the last measured one, per message
+   received in between: wait, take, deserialize into
    Python objects (or, with ``raw=True``, the serialized bytes only) and the callback. Each also
    reports its idle CPU (spinning with no traffic) as a baseline, not subtracted.
 
@@ -35,6 +36,7 @@ import subprocess
 import sys
 import time
 
+from attention_common.executors import DEFAULT_EXECUTOR, EXECUTORS
 from attention_common.isolation import apply_to_this_process, isolated_environ, reserved_domain
 from machine_info import machine
 
@@ -167,8 +169,8 @@ def run_subscriber(args) -> int:
     if 'ROS_DOMAIN_ID' not in os.environ:
         sys.exit('--subscriber runs only as a child of this benchmark (no ROS_DOMAIN_ID)')
     import rclpy
-    from rclpy.executors import SingleThreadedExecutor
 
+    from attention_common.executors import make_executor
     rclpy.init()
     node = rclpy.create_node(f'bench_messages_sub_{os.getpid()}')
     receiver = Receiver(WARMUP, WARMUP + args.expect - 1)
@@ -176,7 +178,7 @@ def run_subscriber(args) -> int:
         message_class(args.subscriber), args.topic,
         receiver.on_raw if args.raw else receiver.on_message, frames_qos(args.depth),
         raw=args.raw)
-    executor = SingleThreadedExecutor()
+    executor = make_executor(args.executor)
     executor.add_node(node)
     deadline = time.monotonic() + 30
     while subscription.get_publisher_count() < 1 and time.monotonic() < deadline:
@@ -198,11 +200,12 @@ def run_subscriber(args) -> int:
 # --- publisher (this process) ---------------------------------------------------------------
 
 def start_subscribers(kind: str, topic: str, count: int, raw: bool, subscribers: int,
-                      timeout: float, depth: int) -> list:
+                      timeout: float, depth: int, executor: str) -> list:
     cmd = [sys.executable, str(Path(__file__).resolve()), '--subscriber', kind,
            '--topic', topic, '--expect', str(count), '--timeout', str(timeout),
            '--depth', str(depth)]
     cmd += ['--raw'] if raw else []
+    cmd += ['--executor', executor]
     # os.environ holds the reserved domain and LOCALHOST (see main); children inherit it.
     return [subprocess.Popen(cmd, stdout=subprocess.PIPE, text=True, env=dict(os.environ))
             for _ in range(subscribers)]
@@ -239,12 +242,12 @@ def wait_until(condition, timeout: float, what: str) -> None:
 
 
 def run_one(node, index: int, kind: str, subscribers: int, raw: bool, count: int,
-            period: float, depth: int) -> dict:
+            period: float, depth: int, executor: str) -> dict:
     """Publish ``count`` messages of ``kind`` to ``subscribers`` new subscriber processes."""
     topic = f'bench_messages/run{index}_{kind}'
     timeout = 30 + (WARMUP + count) * period * 5
     publisher = node.create_publisher(message_class(kind), topic, frames_qos(depth))
-    children = start_subscribers(kind, topic, count, raw, subscribers, timeout, depth)
+    children = start_subscribers(kind, topic, count, raw, subscribers, timeout, depth, executor)
     try:
         for child in children:
             if child.stdout.readline().strip() != 'ready':
@@ -280,7 +283,8 @@ def serialized_sizes() -> dict:
     return {kind: len(serialize_message(build_message(kind))) for kind in KINDS}
 
 
-def run_benchmark(count: int, image_count: int, period: float, depth: int) -> dict:
+def run_benchmark(count: int, image_count: int, period: float, depth: int,
+                  executor: str) -> dict:
     import rclpy
     from rclpy.utilities import get_rmw_implementation_identifier
 
@@ -288,7 +292,7 @@ def run_benchmark(count: int, image_count: int, period: float, depth: int) -> di
     node = rclpy.create_node('bench_messages_pub')
     try:
         runs = [run_one(node, index, kind, subscribers, raw,
-                        image_count if kind == 'image' else count, period, depth)
+                        image_count if kind == 'image' else count, period, depth, executor)
                 for index, (kind, subscribers, raw) in enumerate(RUNS)]
     finally:
         node.destroy_node()
@@ -299,7 +303,7 @@ def run_benchmark(count: int, image_count: int, period: float, depth: int) -> di
 
 # --- report ---------------------------------------------------------------------------------
 
-def print_table(result: dict, period: float, depth: int, domain: int) -> None:
+def print_table(result: dict, period: float, depth: int, domain: int, executor: str) -> None:
     print('| message | serialized bytes | subscribers | received of sent | publish() µs '
           '| pub. window µs | receive µs (each subscriber) |')
     print('|---|---:|---:|---|---:|---:|---|')
@@ -315,7 +319,8 @@ def print_table(result: dict, period: float, depth: int, domain: int) -> None:
               f'| {received} of {run["sent"]} | {run["publish_us"]:.0f} '
               f'| {run["window_us"]:.0f} | {receive} |')
     print()
-    print(f'CPU microseconds per message. {machine()}; {result["rmw"]}, ROS_DOMAIN_ID {domain}, '
+    print(f'CPU microseconds per message, subscribers on the {executor} executor. {machine()}; '
+          f'{result["rmw"]}, ROS_DOMAIN_ID {domain}, '
           f'QoS depth {depth}, one message every {period * 1e3:g} ms after {WARMUP} warm-up '
           'ones.')
     print(f'Idle subscriber process: {sum(idle) / len(idle) * period:.1f} µs CPU per '
@@ -333,6 +338,8 @@ def main() -> int:
                         help='time between two published messages')
     parser.add_argument('--depth', type=int, default=10,
                         help='KEEP_LAST depth on both sides (the graph uses 10)')
+    parser.add_argument('--executor', choices=EXECUTORS, default=DEFAULT_EXECUTOR,
+                        help="the subscribers' rclpy executor (the graph's default: events)")
     parser.add_argument('--subscriber', choices=sorted(KINDS), help=argparse.SUPPRESS)
     parser.add_argument('--topic', help=argparse.SUPPRESS)
     parser.add_argument('--expect', type=int, help=argparse.SUPPRESS)
@@ -347,8 +354,8 @@ def main() -> int:
     with reserved_domain() as domain:
         apply_to_this_process(domain)
         os.environ.update(isolated_environ(domain))
-        result = run_benchmark(args.count, image_count, period, args.depth)
-    print_table(result, period, args.depth, domain)
+        result = run_benchmark(args.count, image_count, period, args.depth, args.executor)
+    print_table(result, period, args.depth, domain, args.executor)
     return 0
 
 
