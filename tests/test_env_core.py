@@ -1,6 +1,10 @@
 """env_node's pure core on the real ALE: RAM addresses checked against the frames, flags, time."""
 
+from dataclasses import fields
+
+from attention_common.parameters import field_docs
 from attention_common.stamps import frames_to_ns
+from env_node.config import EnvNodeConfig
 from env_node.core import (EnvConfig, FRAME_HEIGHT, FRAME_WIDTH, MontezumaEnv, NO_ACTION,
                            RAM_INVENTORY, RAM_X, RamState, read_ram_state, STANDING_POSES)
 from env_node.status import Counters, NO_LATENCY, parse_status, STATUS_KEYS, status_values
@@ -312,3 +316,22 @@ def test_status_values_round_trip(env):
     timed = parse_status(status_values(step, Counters(), False, action_latency_ms=4.56789))
     assert timed['action_latency_ms'] == 4.568 and timed['finished'] is False
     assert parse_status([('extra', 'text')]) == {'extra': 'text'}
+
+
+# -- the node's parameters -----------------------------------------------------------------
+
+def test_node_config_is_the_games_plus_the_nodes_each_documented():
+    names = [f.name for f in fields(EnvNodeConfig)]
+    assert names[:len(fields(EnvConfig))] == [f.name for f in fields(EnvConfig)]
+    assert 'env_id' not in names and 'start_room' not in names  # fixed, not parameters
+    docs = field_docs(EnvNodeConfig)
+    assert all(docs.get(name) for name in names)
+
+
+@pytest.mark.parametrize('values, message', [
+    ({'rate_hz': -1.0}, 'rate_hz must be >= 0'), ({'action_timeout': 0.0}, 'action_timeout > 0'),
+    ({'max_steps': -1}, 'max_steps >= 0'), ({'warmup_steps': -1}, 'warmup_steps must be >= 0'),
+])
+def test_node_config_says_which_value_is_wrong(values, message):
+    with pytest.raises(ValueError, match=message):
+        EnvNodeConfig(**values).validate()

@@ -1,8 +1,13 @@
 """The synthetic trainer: attribution by stamp, utterances, and the human-like options."""
 
+from dataclasses import fields
+
+from attention_common.parameters import field_docs
 from attention_common.stamps import frames_to_ns, NS_PER_S
+from feedback_node.config import FeedbackConfig
 from feedback_node.critical_positions import CRITICAL_POSITIONS
-from feedback_node.reward import RewardFunction
+from feedback_node.reward import RewardConfig, RewardFunction
+from feedback_node.teacher import TeacherConfig
 from feedback_node.trainer import SyntheticTrainer, TrainerConfig
 import pytest
 
@@ -135,3 +140,25 @@ def test_config_rejects_nonsense():
         TrainerConfig(feedback_probability=1.5)
     with pytest.raises(ValueError):
         TrainerConfig(feedback_delay_min=2.0, feedback_delay_max=1.0)
+
+
+def test_node_config_documents_every_parameter_and_builds_the_chosen_trainers():
+    docs = field_docs(FeedbackConfig)
+    assert all(docs.get(f.name) for f in fields(FeedbackConfig))
+    thesis = FeedbackConfig(utterance_interval=0.0).trainer_config()
+    assert thesis == TrainerConfig(utterance_interval=0.0)
+    assert thesis.reward_config() == RewardConfig()
+    # The teacher has no h: its config holds only its own fields, and h's are not checked.
+    teacher = FeedbackConfig(trainer='teacher', seed=3, beta_threshold=1.0).trainer_config()
+    assert teacher == TeacherConfig(seed=3)
+
+
+@pytest.mark.parametrize('values, message', [
+    ({'summary_period': 0.0}, 'summary_period must be > 0'),
+    ({'trainer': 'oracle'}, 'trainer must be one of'),
+    ({'feedback_noise': 2.0}, 'feedback_noise'),
+    ({'reward_variant': 'furthest'}, 'reward_variant'),
+])
+def test_node_config_says_which_value_is_wrong(values, message):
+    with pytest.raises(ValueError, match=message):
+        FeedbackConfig(**values)

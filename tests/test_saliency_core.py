@@ -1,8 +1,10 @@
 """saliency_node's pure core on plain arrays: grounding, matching, images, timing, manifest."""
 
+from dataclasses import fields
 from pathlib import Path
 import shutil
 
+from attention_common.parameters import field_docs
 import cv2
 import numpy as np
 import pytest
@@ -299,6 +301,12 @@ def test_default_settings():
     assert settings.saliency.sigma == 1.5
     assert settings.ttl_ns == 10 * S and settings.require_utterance
     assert settings.method == cv2.TM_CCORR_NORMED
+
+
+def test_every_parameter_is_documented_and_other_names_are_not_ours():
+    docs = field_docs(Settings)
+    assert all(docs.get(f.name) for f in fields(Settings))
+    assert Settings.from_values({'use_sim_time': True}) == Settings()
 
 
 @pytest.mark.parametrize('values, check', [

@@ -38,7 +38,15 @@ def declare_parameters(node, specs: Mapping[str, Tuple[object, str]],
 
 
 def field_docs(cls) -> Dict[str, str]:
-    """Return {field name: the docstring written under it} of a dataclass."""
+    """Return {field name: the docstring written under it} of a dataclass and its bases."""
+    docs = {}
+    for klass in reversed(cls.__mro__):  # a subclass's docstring wins
+        if dataclasses.is_dataclass(klass):
+            docs.update(_own_field_docs(klass))
+    return docs
+
+
+def _own_field_docs(cls) -> Dict[str, str]:
     tree = ast.parse(inspect.getsource(cls))
     body = tree.body[0].body
     docs = {}
@@ -51,9 +59,13 @@ def field_docs(cls) -> Dict[str, str]:
     return docs
 
 
+def dataclass_specs(cls) -> Dict[str, Tuple[object, str]]:
+    """{field name: (default, docstring)} of the dataclass ``cls``, in declaration order."""
+    docs = field_docs(cls)
+    return {field.name: (field.default, docs.get(field.name, ''))
+            for field in dataclasses.fields(cls)}
+
+
 def declare_dataclass(node, cls, runtime: Iterable[str] = ()):
     """Declare one parameter per field of the dataclass ``cls`` (its docstring, its default)."""
-    docs = field_docs(cls)
-    specs = {field.name: (field.default, docs.get(field.name, ''))
-             for field in dataclasses.fields(cls)}
-    return cls(**declare_parameters(node, specs, runtime=runtime))
+    return cls(**declare_parameters(node, dataclass_specs(cls), runtime=runtime))

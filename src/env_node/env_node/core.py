@@ -13,7 +13,7 @@ up to three pixels while it walks, jumps or dies (tests/test_env_core.py checks 
 """
 
 from dataclasses import dataclass
-from typing import NamedTuple, Optional
+from typing import ClassVar, NamedTuple, Optional
 
 import ale_py
 from attention_common.joy_actions import NUM_ACTIONS
@@ -42,24 +42,24 @@ FRAME_HEIGHT, FRAME_WIDTH = 210, 160
 
 @dataclass
 class EnvConfig:
-    """Parameters of the environment; ROS parameters of env_node carry the same names."""
+    """The game's settings; each field is a ROS parameter of env_node (``config.py``)."""
 
-    env_id: str = 'ALE/MontezumaRevenge-v5'
-    """Gymnasium id; ale-py ships the ROM."""
+    env_id: ClassVar[str] = 'ALE/MontezumaRevenge-v5'
+    """Gymnasium id; ale-py ships the ROM. Fixed, not a parameter: the RAM addresses are its."""
+    start_room: ClassVar[int] = 1
+    """The episode ends when the agent leaves this room (RAM room number; Room 1 is 1). Fixed."""
     frameskip: int = 4
-    """Emulator frames per agent step (the action is repeated)."""
+    """Emulator frames per agent step; the action is repeated on each."""
     sticky_actions: float = 0.0
-    """ALE repeat_action_probability; 0 makes a study reproducible."""
+    """ALE repeat_action_probability (0 keeps a study reproducible)."""
     seed: int = 0
-    """Seeds the emulator and the warm-up actions."""
+    """Seeds the emulator and the random warm-up actions."""
     warmup_steps: int = 100
-    """Random steps taken at the start of a trial, before the agent acts."""
-    start_room: int = 1
-    """The episode ends when the agent leaves this room (RAM room number; Room 1 is 1)."""
+    """Random steps at the start of the trial (the thesis's 100), not published."""
     end_on_room_exit: bool = True
-    """End the episode (truncated) when the agent leaves ``start_room``."""
+    """End the episode (truncated) when the agent leaves Room 1."""
     end_on_life_loss: bool = False
-    """End the episode at every life lost (default: play on until game over)."""
+    """End the episode at every life lost instead of at game over."""
 
 
 class RamState(NamedTuple):

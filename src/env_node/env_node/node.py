@@ -19,10 +19,11 @@ from attention_common import qos, topics
 from attention_common.image_codec import numpy_to_image
 from attention_common.joy_actions import joy_to_action, JoyActionError
 from attention_common.node_main import run_node, StartupError
-from attention_common.parameters import declare_parameters
+from attention_common.parameters import declare_dataclass
 from attention_common.stamps import ns_to_stamp, stamp_to_ns
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from env_node.core import EnvConfig, MontezumaEnv, Step
+from env_node.config import EnvNodeConfig, RUNTIME_PARAMETERS
+from env_node.core import MontezumaEnv, Step
 from env_node.status import Counters, NO_LATENCY, STATUS_KEYS, STATUS_NAME, status_values
 from geometry_msgs.msg import PointStamped
 from rcl_interfaces.msg import SetParametersResult
@@ -41,34 +42,6 @@ timeout): DDS discovery takes seconds, and a message sent before a new subscribe
 this publisher on its side is lost."""
 LOG_THROTTLE_S = 5.0
 
-# name: (default, description); floats accept an integer too (rate_hz:=15).
-PARAMETERS = {
-    'frameskip': (4, 'Emulator frames per agent step; the action is repeated on each.'),
-    'sticky_actions': (0.0, 'Probability that ALE repeats the previous action (0 = '
-                            'reproducible).'),
-    'seed': (0, 'Seeds the emulator and the random warm-up actions.'),
-    'warmup_steps': (100, 'Random steps at the start of the trial, not published.'),
-    'rate_hz': (0.0, 'Steps per second on a steady timer with the latest action; 0 = lockstep '
-                     '(wait for the action stamped with the pending observation).'),
-    'action_timeout': (2.0, 'Lockstep: wall seconds without the answer before the pending '
-                            'observation is published again (same stamp) and a timeout '
-                            'counted.'),
-    'max_steps': (0, 'Agent steps after which a last env_status with finished=true is '
-                     'published and stepping stops; 0 = unlimited.'),
-    'end_on_room_exit': (True, 'End the episode (truncated) when the agent leaves Room 1.'),
-    'end_on_life_loss': (False, 'End the episode at every life lost instead of at game over.'),
-    'wait_observation_subscribers': (1, 'Start-up: send the first step only once this '
-                                        'many subscribers of observation have matched (the '
-                                        "launcher sets the graph's count), so no node misses "
-                                        'the first steps while DDS discovery runs.'),
-    'wait_position_subscribers': (0, 'Start-up: likewise for agent_position (the '
-                                     'synthetic trainer).'),
-    'paused': (False, 'true: no steps are taken (real time: the timer skips; lockstep: the '
-                      'answer waits until resumed) and simulation time stands still. Settable '
-                      'at run time (the trainer console pauses with it).'),
-}
-RUNTIME_PARAMETERS = ('paused',)
-
 
 class EnvNode(Node):
     """Publishes each step of the game; applies the Joy actions that answer it."""
@@ -77,25 +50,18 @@ class EnvNode(Node):
 
     def __init__(self, **kwargs):
         super().__init__('env_node', **kwargs)
-        params = declare_parameters(self, PARAMETERS, runtime=RUNTIME_PARAMETERS)
-        self._paused = bool(params['paused'])
+        config = declare_dataclass(self, EnvNodeConfig, runtime=RUNTIME_PARAMETERS)
+        try:
+            config.validate()
+        except ValueError as error:
+            raise StartupError(str(error)) from None
+        self._paused = config.paused
         self._deferred = None  # lockstep, paused: the answer to apply on resume
-        self._rate_hz = params['rate_hz']
-        self._action_timeout = params['action_timeout']
-        self._max_steps = params['max_steps']
-        self._wait_subscribers = ((self.OBS, params['wait_observation_subscribers']),
-                                  (self.POSITION, params['wait_position_subscribers']))
-        if self._rate_hz < 0 or self._action_timeout <= 0 or self._max_steps < 0:
-            raise StartupError('rate_hz must be >= 0, action_timeout > 0 and max_steps >= 0 '
-                               f'(got {self._rate_hz}, {self._action_timeout}, '
-                               f'{self._max_steps})')
-        config = EnvConfig(
-            frameskip=params['frameskip'], sticky_actions=params['sticky_actions'],
-            seed=params['seed'], warmup_steps=params['warmup_steps'],
-            end_on_room_exit=params['end_on_room_exit'],
-            end_on_life_loss=params['end_on_life_loss'])
-        if config.warmup_steps < 0:
-            raise StartupError(f'warmup_steps must be >= 0, got {config.warmup_steps}')
+        self._rate_hz = config.rate_hz
+        self._action_timeout = config.action_timeout
+        self._max_steps = config.max_steps
+        self._wait_subscribers = ((self.OBS, config.wait_observation_subscribers),
+                                  (self.POSITION, config.wait_position_subscribers))
         self.get_logger().info(f'starting {config.env_id}, {config.warmup_steps} warm-up steps')
         try:
             self._env = MontezumaEnv(config)
@@ -178,15 +144,16 @@ class EnvNode(Node):
     def _publish_step(self, step: Step) -> None:
         """Publish a step the agent acts on; in lockstep it becomes the pending observation."""
         self._current = step
-        self._publish_step_data(step)
         numpy_to_image(step.observation, 'rgb8', self._obs_msg)  # encoded once per step
-        self._obs_msg.header.stamp = self._position_msg.header.stamp
-        self._obs_pub.publish(self._obs_msg)
+        self._obs_msg.header.stamp = ns_to_stamp(step.sim_time_ns)
         if self._timeout_timer is not None:
             self._pending_ns = step.sim_time_ns
             self._sent_at = time.monotonic()
             if self._answered:  # start-up has its own re-sends, see _on_start_poll
                 self._timeout_timer.reset()  # (re)starts the wait for this answer
+        # The observation first: the learner acts on it while the step's data goes out.
+        self._obs_pub.publish(self._obs_msg)
+        self._publish_step_data(step)
 
     def _advance(self, action: int) -> None:
         step = self._env.step(action)

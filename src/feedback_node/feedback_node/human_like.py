@@ -20,11 +20,11 @@ class HumanLike:
     """The three knobs; the feedback node's parameters carry the same names."""
 
     feedback_probability: float = 1.0
-    """Probability that a judged step gets feedback at all."""
+    """Probability that a judged step gets feedback at all (1 = every step)."""
     feedback_delay_min: float = 0.0
-    """Shortest delay (simulation seconds) after the consequence is seen."""
+    """Shortest delay of feedback, seconds of simulation time after the consequence is seen."""
     feedback_delay_max: float = 0.0
-    """Longest delay; the delay is uniform between the two."""
+    """Longest delay; drawn uniformly between the two."""
     feedback_noise: float = 0.0
     """Probability that the sign of h is flipped (h = 0 stays 0)."""
 

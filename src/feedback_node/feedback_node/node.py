@@ -20,14 +20,15 @@ import collections
 
 from attention_common import qos, topics
 from attention_common.node_main import run_node, StartupError
-from attention_common.parameters import declare_parameters
+from attention_common.parameters import declare_dataclass
 from attention_common.stamps import NS_PER_S, ns_to_stamp, stamp_to_ns
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from env_node.status import parse_status, STATUS_NAME
+from feedback_node.config import FeedbackConfig, RUNTIME_PARAMETERS
 from feedback_node.human_input import (
     excerpt, feedback_problem, position_problem, utterance_problem)
-from feedback_node.teacher import SeenStep, Teacher, TeacherConfig, TRAINERS
-from feedback_node.trainer import SyntheticTrainer, TrainerConfig
+from feedback_node.teacher import SeenStep, Teacher
+from feedback_node.trainer import SyntheticTrainer
 from feedback_node.utterances import Utterance
 from geometry_msgs.msg import PointStamped, Vector3Stamped
 from rcl_interfaces.msg import SetParametersResult
@@ -40,65 +41,22 @@ HELD_FEEDBACK = 100_000
 """Judgements held while nobody subscribes to the feedback yet (start-up), at most."""
 HELD_CHECK_S = 0.05
 
-# name: (default, description). Floats accept an integer too (utterance_interval:=0).
-PARAMETERS = {
-    'trainer': ('thesis', "'thesis': h from the position (equations 4.1/4.2, the study); "
-                          "'teacher': +1 when the action does what the expert's would, -1 "
-                          'otherwise, nothing while no action can matter.'),
-    'synthetic': (True, 'true: the synthetic trainer speaks and judges; false: a person does '
-                        '(ros2 topic pub), this node only logs what it hears. Settable at run '
-                        'time.'),
-    'utterance_interval': (10.0, 'Seconds of simulation time between utterances; 0 = every '
-                                 'step; negative = no utterances.'),
-    'alpha_threshold': (8.0, 'h = +1 when the agent is closer than this to a critical position '
-                             '(equation 4.2); also the radius of standing on one.'),
-    'beta_threshold': (20.0, 'h = -1 when the agent is this far or further; 0 in between.'),
-    'stationary_steps': (10, 'h = -1 once the agent has stood still for more than this many '
-                             'steps.'),
-    'reward_variant': ('nearest', "'nearest' (the thesis: nearest critical position) or "
-                                  "'progress' (the furthest reached so far and the next)."),
-    'stuck_buffer_steps': (10, 'Length of the position buffer of the stuck rule: no utterance '
-                               'while all its positions are equal.'),
-    'feedback_probability': (1.0, 'Probability that a step gets feedback (1 = every step).'),
-    'feedback_delay_min': (0.0, 'Shortest delay of feedback, seconds of simulation time.'),
-    'feedback_delay_max': (0.0, 'Longest delay; drawn uniformly between the two.'),
-    'feedback_noise': (0.0, 'Probability that the sign of h is flipped.'),
-    'seed': (0, 'Seeds the human-like draws (probability, delay, noise).'),
-    'plain_copies': (False, 'true: publish every stamped feedback on the plain feedback topic '
-                            'too (the learner logs such a copy as a duplicate); false: only the '
-                            'late teacher, which has no stamp to give, uses the plain topic.'),
-    'summary_period': (30.0, 'Wall seconds between the log lines of counts (when they changed).'),
-}
-
-
-TEACHER_PARAMETERS = ('utterance_interval', 'feedback_probability', 'feedback_delay_min',
-                      'feedback_delay_max', 'feedback_noise', 'seed')
-"""The parameters the teacher uses (the others are the thesis trainer's reward)."""
-
 
 class FeedbackNode(Node):
     """The synthetic trainer (section 4.1, Figure 5.1) as a node."""
 
     def __init__(self, **kwargs):
         super().__init__('feedback_node', **kwargs)
-        params = declare_parameters(self, PARAMETERS, runtime=('synthetic',))
-        self._synthetic = bool(params.pop('synthetic'))
-        self._plain_copies = bool(params.pop('plain_copies'))
-        summary_period = params.pop('summary_period')
-        if summary_period <= 0:
-            raise StartupError(f'summary_period must be > 0, got {summary_period}')
-        self._kind = params.pop('trainer')
-        if self._kind not in TRAINERS:
-            raise StartupError(f'trainer must be one of {TRAINERS}, got {self._kind!r}')
         try:
-            if self._kind == 'teacher':
-                self._config = TeacherConfig(**{k: params[k] for k in TEACHER_PARAMETERS})
-                self._trainer = Teacher(self._config)
-            else:
-                self._config = TrainerConfig(**params)
-                self._trainer = SyntheticTrainer(self._config)
+            config = declare_dataclass(self, FeedbackConfig, runtime=RUNTIME_PARAMETERS)
+            self._kind = config.trainer
+            self._config = config.trainer_config()
+            self._trainer = (Teacher(self._config) if self._kind == 'teacher'
+                             else SyntheticTrainer(self._config))
         except (ValueError, OSError) as error:
             raise StartupError(str(error)) from None
+        self._synthetic = config.synthetic
+        self._plain_copies = config.plain_copies
         self._now_ns = None  # the newest step stamp heard: this node's "now"
         self._restarts_logged = 0
         self._counts = {'bad_positions': 0, 'bad_status': 0, 'heard_utterances': 0,
@@ -120,7 +78,7 @@ class FeedbackNode(Node):
         self.create_subscription(Float32, topics.FEEDBACK, self._on_heard_feedback, qos.HUMAN)
         self.add_on_set_parameters_callback(self._on_set_parameters)
         steady = Clock(clock_type=ClockType.STEADY_TIME)
-        self.create_timer(summary_period, self._log_summary, clock=steady)
+        self.create_timer(config.summary_period, self._log_summary, clock=steady)
         self._unsent = collections.deque(maxlen=HELD_FEEDBACK)  # until the learner is matched
         self.create_timer(HELD_CHECK_S, self._send_held, clock=steady)
         self._last_summary = None

@@ -31,13 +31,15 @@ class RewardConfig:
     """Parameters of h; the feedback node's ROS parameters carry the same names."""
 
     alpha_threshold: float = DEFAULT_RADIUS
-    """Closer than this to a critical position: h = 1."""
+    """h = +1 when the agent is closer than this to a critical position (equation 4.2); also
+    the radius of standing on one."""
     beta_threshold: float = 20.0
-    """At least this far: h = -1 (in between: 0)."""
+    """h = -1 when the agent is this far or further; 0 in between."""
     stationary_steps: int = 10
-    """Standing still for more than this many steps: h = -1."""
+    """h = -1 once the agent has stood still for more than this many steps."""
     reward_variant: str = 'nearest'
-    """'nearest' (the thesis) or 'progress'."""
+    """'nearest' (the thesis: nearest critical position) or 'progress' (the furthest reached
+    so far and the next)."""
 
     def __post_init__(self):
         if not 0.0 < self.alpha_threshold <= self.beta_threshold:

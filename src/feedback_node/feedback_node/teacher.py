@@ -52,9 +52,10 @@ class TeacherConfig(HumanLike):
     """Parameters of the teacher; the feedback node's ROS parameters carry the same names."""
 
     utterance_interval: float = 10.0
-    """Seconds of simulation time between utterances; 0 = every step; negative = never."""
+    """Seconds of simulation time between utterances; 0 = every step; negative = no
+    utterances."""
     seed: int = 0
-    """Seeds the human-like draws."""
+    """Seeds the human-like draws (probability, delay, noise)."""
 
 
 class SeenStep(NamedTuple):

@@ -16,39 +16,29 @@ consequence is seen; the feedback keeps the stamp of the step it judges), and so
 (``feedback_noise``: the probability that the sign of h is flipped). Seeded.
 """
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from typing import List, NamedTuple, Optional
 
-from feedback_node.critical_positions import DEFAULT_RADIUS
-from feedback_node.human_like import FeedbackScheduler, HumanLike
+from feedback_node.human_like import FeedbackScheduler
 from feedback_node.reward import RewardConfig, RewardFunction
+from feedback_node.teacher import TeacherConfig
 from feedback_node.utterances import Utterance, UtteranceGenerator
 
 
 @dataclass
-class TrainerConfig(HumanLike):
-    """Parameters of the synthetic trainer; the node's ROS parameters carry the same names."""
+class TrainerConfig(TeacherConfig, RewardConfig):
+    """The thesis's trainer: h's parameters, the teacher's, and the stuck rule's buffer."""
 
-    alpha_threshold: float = DEFAULT_RADIUS
-    """h = 1 closer than this to a critical position; also the radius of 'standing on' one."""
-    beta_threshold: float = 20.0
-    """h = -1 at least this far from it (in between: 0)."""
-    stationary_steps: int = 10
-    """h = -1 after standing still for more than this many steps."""
-    reward_variant: str = 'nearest'
-    """'nearest' (the thesis) or 'progress' (see feedback_node.reward)."""
-    utterance_interval: float = 10.0
-    """Seconds of simulation time between utterances; 0 = every step; negative = never."""
     stuck_buffer_steps: int = 10
-    """Length of the position buffer of the stuck rule."""
-    seed: int = 0
-    """Seeds the human-like draws (``feedback_probability``, delay, noise: ``HumanLike``)."""
+    """Length of the position buffer of the stuck rule: no utterance while all its positions are
+    equal."""
+
+    def __post_init__(self):
+        TeacherConfig.__post_init__(self)
+        RewardConfig.__post_init__(self)
 
     def reward_config(self) -> RewardConfig:
-        return RewardConfig(alpha_threshold=self.alpha_threshold,
-                            beta_threshold=self.beta_threshold,
-                            stationary_steps=self.stationary_steps,
-                            reward_variant=self.reward_variant)
+        return RewardConfig(**{f.name: getattr(self, f.name) for f in fields(RewardConfig)})
 
 
 class Feedback(NamedTuple):

@@ -9,6 +9,7 @@ the callback: a worker thread would add a copy and a hand-off for nothing.
 """
 
 import collections
+import dataclasses
 import functools
 import time
 import traceback
@@ -16,6 +17,7 @@ import traceback
 from attention_common import qos, topics
 from attention_common.image_codec import image_to_numpy, ImageFormatError, numpy_to_image
 from attention_common.node_main import run_node, StartupError
+from attention_common.parameters import dataclass_specs
 from attention_common.stamps import NS_PER_S, stamp_to_ns, StampGuard
 from diagnostic_msgs.msg import DiagnosticArray
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
@@ -26,7 +28,7 @@ from saliency_node.manifest import (load_manifest, load_template_images, Manifes
                                     TemplateFileError)
 from saliency_node.matching import build_objects
 from saliency_node.saliency import SaliencyConfig, SaliencyMaker
-from saliency_node.settings import PARAMETERS, Settings
+from saliency_node.settings import Settings, START_ONLY
 from saliency_node.timeline import Timeline
 from sensor_msgs.msg import Image
 from std_msgs.msg import String
@@ -50,7 +52,7 @@ class SaliencyNode(Node):
 
     def __init__(self, **kwargs):
         super().__init__('saliency_node', **kwargs)
-        for name, default, description in PARAMETERS:
+        for name, (default, description) in dataclass_specs(Settings).items():
             # Dynamic typing: numbers may come as int or float, mode as YAML's false for off.
             self.declare_parameter(name, default, ParameterDescriptor(
                 description=description, dynamic_typing=True))
@@ -95,13 +97,13 @@ class SaliencyNode(Node):
     # Parameters ---------------------------------------------------------------------------
 
     def _values(self, changes=None) -> dict:
-        values = {name: self.get_parameter(name).value for name, _, _ in PARAMETERS}
+        values = {f.name: self.get_parameter(f.name).value for f in dataclasses.fields(Settings)}
         values.update(changes or {})
         return values
 
     def _on_set_parameters(self, params) -> SetParametersResult:
         changes = {p.name: p.value for p in params}
-        for name in ('templates_manifest', 'status_period'):
+        for name in START_ONLY:
             if name in changes:
                 return SetParametersResult(successful=False,
                                            reason=f'{name} is read at start only')

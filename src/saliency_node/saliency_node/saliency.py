@@ -46,16 +46,17 @@ def parse_mode(value) -> str:
 
 @dataclass
 class SaliencyConfig:
-    """How saliency images are made; the node's parameters of the same names set it."""
+    """How saliency images are made; each field is a ROS parameter of saliency_node too."""
 
     mode: str = 'language'
-    """One of ``MODES``."""
+    """One of language, blind_agent, hidden_agent, faded, off (MODES); false means off (YAML
+    reads `-p mode:=off` as false)."""
     blur_radius: int = BLUR_RADIUS
     """Gaussian blur radius r in pixels (kernel 2r + 1); 0 disables the blur."""
     blur_sigma: float = 0.0
-    """Standard deviation of the blur; 0 means r / 2."""
+    """Standard deviation of the blur; 0 means blur_radius / 2."""
     fade: float = 0.3
-    """Brightness kept outside the mask in ``faded`` mode."""
+    """Brightness kept outside the mask in faded mode."""
 
     def __post_init__(self):
         self.mode = parse_mode(self.mode)

@@ -1,48 +1,25 @@
 """
-The node's parameters: names, defaults, descriptions, and their checking (no rclpy).
+The node's parameters in one dataclass: names, defaults, descriptions, and their checking.
 
 Numbers accept an integer or a float (``-p utterance_ttl:=5`` and ``:=5.0`` both work), and
-``mode`` accepts the boolean false that YAML makes of ``off``.
+``mode`` accepts the boolean false that YAML makes of ``off``. No rclpy.
 """
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
+import functools
 from typing import Mapping
 
-from attention_common.stamps import MAX_STAMP_JUMP_S
+from attention_common.stamps import MAX_STAMP_JUMP_S, NS_PER_S
 from attention_common.utterance import MAX_UTTERANCE_CHARS
 
 from saliency_node.matching import method_from_name
-from saliency_node.saliency import MODES, SaliencyConfig
+from saliency_node.saliency import SaliencyConfig
 
-PARAMETERS = (
-    ('mode', 'language', f'One of {", ".join(MODES)}; settable at run time (`-p mode:=off` '
-     'arrives as a boolean false and means off).'),
-    ('blur_radius', 3, 'Gaussian blur radius r in pixels (kernel 2r+1); run-time settable.'),
-    ('blur_sigma', 0.0, 'Blur standard deviation; 0 means blur_radius / 2.'),
-    ('fade', 0.3, 'Brightness kept outside the mask in faded mode.'),
-    ('utterance_ttl', 10.0, 'Simulation seconds an utterance stays valid from its stamp '
-     '(the synthetic trainer speaks every 10 s).'),
-    ('require_utterance', True, 'false: every observation gets a saliency image, the agent '
-     'alone when no utterance is valid (blind_agent and hidden_agent conditions).'),
-    ('match_method', 'TM_CCORR_NORMED', 'cv2.matchTemplate method: TM_CCORR_NORMED '
-     '(equation 3.1), TM_CCOEFF_NORMED or TM_SQDIFF_NORMED.'),
-    ('templates_manifest', '', "Template manifest YAML; empty: the packaged one (Montezuma's "
-     'Revenge, Room 1). Read at start only.'),
-    ('observation_buffer', 64, 'Observations held while waiting for a late stamped utterance.'),
-    ('max_utterance_chars', MAX_UTTERANCE_CHARS, 'Longer utterances are logged and dropped.'),
-    ('stamped_stream_timeout', 5.0, 'Wall seconds after a stamped utterance during which a plain '
-     'utterance of the same text is taken as its copy and not used twice.'),
-    ('max_stamp_jump', MAX_STAMP_JUMP_S, 'Simulation seconds: an observation or stamped '
-     'utterance stamped further than this from the newest observation is dropped with a warning '
-     '(3 such observations in a row that continue each other: the env started over).'),
-    ('publish_mask', True, 'Also publish the mask (mono8, 0 or 255) on saliency_mask.'),
-    ('status_period', 30.0, 'Wall seconds between the log lines of counts. Read at start only.'),
-)
-DEFAULTS = {name: default for name, default, _ in PARAMETERS}
+START_ONLY = ('templates_manifest', 'status_period')
+"""Read at start only; every other parameter is settable at run time."""
 
 
-def _number(values: Mapping, name: str, low: float, integer: bool = False) -> float:
-    value = values[name]
+def _number(name: str, value, low: float, integer: bool = False) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise ValueError(f'{name} must be a number, got {value!r}')
     if integer and int(value) != value:
@@ -52,48 +29,89 @@ def _number(values: Mapping, name: str, low: float, integer: bool = False) -> fl
     return int(value) if integer else float(value)
 
 
-def _flag(values: Mapping, name: str) -> bool:
-    if not isinstance(values[name], bool):
-        raise ValueError(f'{name} must be true or false, got {values[name]!r}')
-    return values[name]
+def _flag(name: str, value) -> bool:
+    if not isinstance(value, bool):
+        raise ValueError(f'{name} must be true or false, got {value!r}')
+    return value
 
 
-@dataclass(frozen=True)
-class Settings:
-    """Checked parameter values."""
+@dataclass
+class Settings(SaliencyConfig):
+    """
+    Each field is a ROS parameter of the same name; its docstring is the description.
 
-    saliency: SaliencyConfig
-    method: int
-    ttl_ns: int
-    require_utterance: bool
-    observation_buffer: int
-    max_utterance_chars: int
-    stamped_stream_timeout: float
-    max_stamp_jump_ns: int
-    publish_mask: bool
-    templates_manifest: str
-    status_period: float
+    The saliency image's (``SaliencyConfig``), then the node's. Checked on construction.
+    """
+
+    utterance_ttl: float = 10.0
+    """Simulation seconds an utterance stays valid from its stamp (the synthetic trainer speaks
+    every 10 s)."""
+    require_utterance: bool = True
+    """false: every observation gets a saliency image, the agent alone when no utterance is
+    valid (blind_agent and hidden_agent conditions)."""
+    match_method: str = 'TM_CCORR_NORMED'
+    """cv2.matchTemplate method: TM_CCORR_NORMED (equation 3.1), TM_CCOEFF_NORMED or
+    TM_SQDIFF_NORMED."""
+    templates_manifest: str = ''
+    """Template manifest YAML; empty: the packaged one (Montezuma's Revenge, Room 1). Read at
+    start only."""
+    observation_buffer: int = 64
+    """Observations held while waiting for a late stamped utterance."""
+    max_utterance_chars: int = MAX_UTTERANCE_CHARS
+    """Longer utterances are logged and dropped."""
+    stamped_stream_timeout: float = 5.0
+    """Wall seconds after a stamped utterance during which a plain utterance of the same text
+    is taken as its copy and not used twice."""
+    max_stamp_jump: float = MAX_STAMP_JUMP_S
+    """Simulation seconds: an observation or stamped utterance stamped further than this from
+    the newest observation is dropped with a warning (3 such observations in a row that
+    continue each other: the env started over)."""
+    publish_mask: bool = True
+    """Also publish the mask (mono8, 0 or 255) on saliency_mask."""
+    status_period: float = 30.0
+    """Wall seconds between the log lines of counts. Read at start only."""
+
+    def __post_init__(self):
+        """Check every value, numbers made int or float; ``ValueError`` says which and why."""
+        self.utterance_ttl = _number('utterance_ttl', self.utterance_ttl, 0.0)
+        if self.utterance_ttl <= 0.0:
+            raise ValueError(f'utterance_ttl must be positive, got {self.utterance_ttl}')
+        if not isinstance(self.templates_manifest, str):
+            raise ValueError('templates_manifest must be a path')
+        self.blur_radius = _number('blur_radius', self.blur_radius, 0, True)
+        self.blur_sigma = _number('blur_sigma', self.blur_sigma, 0.0)
+        self.fade = _number('fade', self.fade, 0.0)
+        super().__post_init__()  # the mode, and the ranges of the blur and the fade
+        method_from_name(self.match_method)
+        _flag('require_utterance', self.require_utterance)
+        self.observation_buffer = _number('observation_buffer', self.observation_buffer, 1, True)
+        self.max_utterance_chars = _number('max_utterance_chars', self.max_utterance_chars, 1,
+                                           True)
+        self.stamped_stream_timeout = _number('stamped_stream_timeout',
+                                              self.stamped_stream_timeout, 0.0)
+        self.max_stamp_jump = _number('max_stamp_jump', self.max_stamp_jump, 1e-3)
+        _flag('publish_mask', self.publish_mask)
+        self.status_period = _number('status_period', self.status_period, 0.001)
 
     @classmethod
     def from_values(cls, values: Mapping) -> 'Settings':
-        """Check every parameter; ``ValueError`` says which one is wrong and why."""
-        values = {**DEFAULTS, **values}
-        ttl = _number(values, 'utterance_ttl', 0.0)
-        if ttl <= 0.0:
-            raise ValueError(f'utterance_ttl must be positive, got {ttl}')
-        if not isinstance(values['templates_manifest'], str):
-            raise ValueError('templates_manifest must be a path')
-        return cls(
-            saliency=SaliencyConfig(
-                mode=values['mode'], blur_radius=_number(values, 'blur_radius', 0, True),
-                blur_sigma=_number(values, 'blur_sigma', 0.0), fade=_number(values, 'fade', 0.0)),
-            method=method_from_name(values['match_method']),
-            ttl_ns=int(round(ttl * 1e9)),
-            require_utterance=_flag(values, 'require_utterance'),
-            observation_buffer=_number(values, 'observation_buffer', 1, True),
-            max_utterance_chars=_number(values, 'max_utterance_chars', 1, True),
-            stamped_stream_timeout=_number(values, 'stamped_stream_timeout', 0.0),
-            max_stamp_jump_ns=int(round(_number(values, 'max_stamp_jump', 1e-3) * 1e9)),
-            publish_mask=_flag(values, 'publish_mask'),
-            templates_manifest=values['templates_manifest'],
-            status_period=_number(values, 'status_period', 0.001))
+        """Check ``values``: missing names keep their defaults, others (use_sim_time) skipped."""
+        return cls(**{f.name: values[f.name] for f in fields(cls) if f.name in values})
+
+    @functools.cached_property
+    def saliency(self) -> SaliencyConfig:
+        """Return the saliency image's part, as ``SaliencyMaker.render`` takes it."""
+        return SaliencyConfig(**{f.name: getattr(self, f.name) for f in fields(SaliencyConfig)})
+
+    @property
+    def method(self) -> int:
+        """Return the cv2 constant of ``match_method``."""
+        return method_from_name(self.match_method)
+
+    @property
+    def ttl_ns(self) -> int:
+        return int(round(self.utterance_ttl * NS_PER_S))
+
+    @property
+    def max_stamp_jump_ns(self) -> int:
+        return int(round(self.max_stamp_jump * NS_PER_S))

@@ -1,0 +1,41 @@
+"""env_node's parameters in one dataclass: the game's (``core.EnvConfig``) and the node's own."""
+
+from dataclasses import dataclass
+
+from env_node.core import EnvConfig
+
+RUNTIME_PARAMETERS = ('paused',)
+"""Settable while the node runs; every other parameter is read once at start (read-only)."""
+
+
+@dataclass
+class EnvNodeConfig(EnvConfig):
+    """Each field is a ROS parameter of the same name; its docstring is the description."""
+
+    rate_hz: float = 0.0
+    """Steps per second on a steady timer with the latest action; 0 = lockstep (wait for the
+    action stamped with the pending observation)."""
+    action_timeout: float = 2.0
+    """Lockstep: wall seconds without the answer before the pending observation is published
+    again (same stamp) and a timeout counted."""
+    max_steps: int = 0
+    """Agent steps after which a last env_status with finished=true is published and stepping
+    stops; 0 = unlimited."""
+    wait_observation_subscribers: int = 1
+    """Start-up: send the first step only once this many subscribers of observation have
+    matched (graph.yaml: 2, saliency_node and tamer_node), so no node misses the first steps
+    while DDS discovery runs."""
+    wait_position_subscribers: int = 0
+    """Start-up: likewise for agent_position (graph.yaml: 1, the synthetic trainer)."""
+    paused: bool = False
+    """true: no steps are taken (real time: the timer skips; lockstep: the answer waits until
+    resumed) and simulation time stands still. Settable at run time (the trainer console pauses
+    with it)."""
+
+    def validate(self) -> None:
+        """Raise ValueError saying which value is impossible (the emulator checks its own)."""
+        if self.rate_hz < 0 or self.action_timeout <= 0 or self.max_steps < 0:
+            raise ValueError('rate_hz must be >= 0, action_timeout > 0 and max_steps >= 0 '
+                             f'(got {self.rate_hz}, {self.action_timeout}, {self.max_steps})')
+        if self.warmup_steps < 0:
+            raise ValueError(f'warmup_steps must be >= 0, got {self.warmup_steps}')

@@ -1,0 +1,46 @@
+"""feedback_node's parameters in one dataclass: the two trainers' and the node's own."""
+
+from dataclasses import dataclass, fields
+from typing import Union
+
+from feedback_node.teacher import TeacherConfig, TRAINERS
+from feedback_node.trainer import TrainerConfig
+
+RUNTIME_PARAMETERS = ('synthetic',)
+"""Settable while the node runs; every other parameter is read once at start (read-only)."""
+
+
+@dataclass
+class FeedbackConfig(TrainerConfig):
+    """
+    Each field is a ROS parameter of the same name; its docstring is the description.
+
+    The fields of ``TrainerConfig`` (h, the stuck rule, and the teacher's: utterances, the
+    human-like knobs, seed), then the node's. The teacher uses only ``TeacherConfig``'s.
+    """
+
+    trainer: str = 'thesis'
+    """'thesis': h from the position (equations 4.1/4.2, the study); 'teacher': +1 when the
+    action does what the expert's would, -1 otherwise, nothing while no action can matter."""
+    synthetic: bool = True
+    """true: the synthetic trainer speaks and judges; false: a person does (ros2 topic pub),
+    this node only logs what it hears. Settable at run time."""
+    plain_copies: bool = False
+    """true: publish every stamped feedback on the plain feedback topic too (the learner logs
+    such a copy as a duplicate); false: only the late teacher, which has no stamp to give, uses
+    the plain topic."""
+    summary_period: float = 30.0
+    """Wall seconds between the log lines of counts (when they changed)."""
+
+    def __post_init__(self):
+        """Check the node's fields, then the chosen trainer's (the teacher's alone for it)."""
+        if self.summary_period <= 0:
+            raise ValueError(f'summary_period must be > 0, got {self.summary_period}')
+        if self.trainer not in TRAINERS:
+            raise ValueError(f'trainer must be one of {TRAINERS}, got {self.trainer!r}')
+        self.trainer_config()
+
+    def trainer_config(self) -> Union[TeacherConfig, TrainerConfig]:
+        """Build the chosen trainer's config from these fields (it checks them)."""
+        cls = TeacherConfig if self.trainer == 'teacher' else TrainerConfig
+        return cls(**{f.name: getattr(self, f.name) for f in fields(cls)})
