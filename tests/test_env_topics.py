@@ -99,7 +99,8 @@ def test_lockstep_frames_stamps_and_motion(start_node, probe):
     observed = sorted(set(stamps(received)))  # start-up may send the first one again
     assert stamps(received) == sorted(stamps(received))  # never older than one already sent
     assert len(observed) == 17
-    assert set(observed) <= set(stamps(learner.positions.snapshot()))
+    # Every observed step has its position (published right after its observation).
+    assert learner.positions.wait_for(lambda m: set(observed) <= set(stamps(m)), REPLY_S)
     assert learner.clock.wait_for(
         lambda m: stamp_to_ns(m[-1].clock) == observed[-1], REPLY_S)  # /clock follows the steps
     points = {(learner.position_at(s).x, learner.position_at(s).y) for s in observed}

@@ -103,7 +103,7 @@ class LearnerWorker(threading.Thread):
         return schedule.owed + max(0.0, now - schedule.last_reading) * schedule.rate_hz
 
     def _event_time(self, event: FeedbackEvent) -> float:
-        """The schedule's clock reading of an event's arrival (sim or wall seconds)."""
+        """Return the schedule's clock reading of an event's arrival (sim or wall seconds)."""
         return event.now / 1e9 if self.config.update_clock == 'sim' else event.arrived
 
     def wait_caught_up(self, limit: float, timeout_s: float) -> float:
