@@ -30,14 +30,8 @@ from geometry_msgs.msg import Vector3Stamped
 from rcl_interfaces.srv import GetParameters, ListParameters
 from rclpy.node import Node
 from rclpy.parameter import parameter_value_to_python
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Image
 from std_msgs.msg import Float32, String
-
-WATCH_IMAGES = QoSProfile(depth=10, reliability=ReliabilityPolicy.BEST_EFFORT)
-WATCH_STEPS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE,
-                         durability=DurabilityPolicy.VOLATILE)
-"""Reliable like the publishers, with a deep queue: a busy launcher falls behind, loses nothing."""
 
 SUBSCRIPTION_PERIOD_S = 0.1
 """How often the monitor's timer adds or removes the image subscriptions."""
@@ -71,12 +65,12 @@ class GraphMonitor(Node):
         self._started = time.monotonic()
         sub = self.create_subscription
         self._status_subscription = sub(
-            DiagnosticArray, topics.ENV_STATUS, self._on_env_status, WATCH_STEPS)
-        sub(Vector3Stamped, topics.FEEDBACK_STAMPED, self._on_feedback_stamped, WATCH_STEPS)
-        sub(DiagnosticArray, topics.UTTERANCE_STAMPED, self._on_utterance_stamped, WATCH_STEPS)
+            DiagnosticArray, topics.ENV_STATUS, self._on_env_status, qos.WATCH_STEPS)
+        sub(Vector3Stamped, topics.FEEDBACK_STAMPED, self._on_feedback_stamped, qos.WATCH_STEPS)
+        sub(DiagnosticArray, topics.UTTERANCE_STAMPED, self._on_utterance_stamped, qos.WATCH_STEPS)
         if watch_plain:
-            sub(Float32, topics.FEEDBACK, self._on_feedback, WATCH_STEPS)
-            sub(String, topics.UTTERANCE, self._on_utterance, WATCH_STEPS)
+            sub(Float32, topics.FEEDBACK, self._on_feedback, qos.WATCH_STEPS)
+            sub(String, topics.UTTERANCE, self._on_utterance, qos.WATCH_STEPS)
         sub(DiagnosticArray, topics.METRICS, self._on_metrics, qos.METRICS)
         self._images_wanted = threading.Event()
         self._watching_images = False
@@ -98,13 +92,13 @@ class GraphMonitor(Node):
             self._watching_images = True
             self.create_subscription(Image, topics.SALIENCY,
                                      self._image_callback(topics.SALIENCY, SALIENCY),
-                                     WATCH_IMAGES, raw=True)
+                                     qos.WATCH_IMAGES, raw=True)
         with self.lock:
             waiting = self.gallery.waiting and not self.gallery.full
         if waiting and self._watching_images and not self._gallery_subscriptions:
             self._gallery_subscriptions = tuple(
                 self.create_subscription(Image, topic, self._image_callback(topic, kind),
-                                         WATCH_IMAGES, raw=True)
+                                         qos.WATCH_IMAGES, raw=True)
                 for topic, kind in ((topics.OBSERVATION, OBSERVATION),
                                     (topics.SALIENCY_MASK, MASK)))
         elif not waiting and self._gallery_subscriptions:

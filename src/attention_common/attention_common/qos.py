@@ -5,7 +5,8 @@ QoS profiles of the graph, chosen on purpose and named once.
   observation, so a lost frame would stall a step until ``action_timeout``.
 - A person's words (``utterance``, ``feedback``) are RELIABLE and VOLATILE, which is exactly what
   ``ros2 topic pub`` offers by default; KEEP_ALL history keeps bursts whole.
-- Status and metrics are for viewers: reliable, shallow.
+- Status and metrics are for viewers: reliable, shallow. The launcher watches with a deep
+  queue (``WATCH_STEPS``) and samples images best effort (``WATCH_IMAGES``).
 - ``/clock`` follows rclpy's own time source (best-effort subscriber, depth 1); a reliable
   publisher serves both kinds of subscriber.
 """
@@ -47,3 +48,12 @@ METRICS = _reliable(10)
 
 CLOCK = _reliable(1)
 """/clock publisher (rclpy's time source subscribes best-effort, depth 1)."""
+
+WATCH_STEPS = _reliable(1000)
+"""The launcher's monitor on env_status and the trainer's topics: reliable like the publishers,
+with a deep queue, so a busy launcher falls behind and loses nothing."""
+
+WATCH_IMAGES = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
+                          reliability=ReliabilityPolicy.BEST_EFFORT,
+                          durability=DurabilityPolicy.VOLATILE)
+"""The launcher's image samples (counting, the gallery): best effort, a late one may go."""
