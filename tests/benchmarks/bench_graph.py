@@ -31,6 +31,7 @@ import time
 
 from attention_common.executors import executor_name
 from machine_info import machine
+from tamer_node.config import TamerConfig
 
 BIN = Path(sys.executable).parent
 RATIO_TARGET = 0.7
@@ -38,12 +39,15 @@ P50_TARGET_MS = 2.0
 P99_TARGET_MS = 5.0
 
 
-def graph_run(steps: int, workdir: Path) -> dict:
+def graph_run(steps: int, workdir: Path, pace_updates: float) -> dict:
     run_dir = workdir / 'graph'
+    params = workdir / 'bench_params.yaml'
+    params.write_text(f'tamer_node:\n  ros__parameters:\n    pace_updates: {pace_updates!r}\n')
     started = time.monotonic()
     result = subprocess.run(
         [str(BIN / 'attention_train'), '--steps', str(steps), '--condition', 'language',
-         '--trainer', 'thesis', '--quiet', '--run-dir', str(run_dir)],
+         '--trainer', 'thesis', '--quiet', '--run-dir', str(run_dir),
+         '--params-file', str(params)],
         capture_output=True, text=True)
     wall = time.monotonic() - started
     if result.returncode != 0:
@@ -74,7 +78,7 @@ def graph_run(steps: int, workdir: Path) -> dict:
     }
 
 
-def in_process_run(steps: int, workdir: Path) -> dict:
+def in_process_run(steps: int, workdir: Path, pace_updates: float) -> dict:
     """Do the graph's work, one step after the other in this process (no ROS, no copies)."""
     import torch
     torch.set_num_threads(1)
@@ -87,7 +91,6 @@ def in_process_run(steps: int, workdir: Path) -> dict:
     from saliency_node.saliency import SaliencyConfig, SaliencyMaker
     from saliency_node.timeline import Timeline
     from tamer_node.agent import TamerAgent
-    from tamer_node.config import TamerConfig
 
     env = MontezumaEnv(EnvConfig(seed=0))
     trainer = SyntheticTrainer(TrainerConfig(utterance_interval=10.0))
@@ -99,7 +102,8 @@ def in_process_run(steps: int, workdir: Path) -> dict:
     timeline = Timeline(int(10.0 * NS_PER_S), capacity=64, require_utterance=True)
     saliency_config = SaliencyConfig(mode='language')
     run_dir = workdir / 'in_process'
-    agent = TamerAgent(TamerConfig(alpha=1e-4, run_dir=str(run_dir)), str(run_dir),
+    config = TamerConfig(alpha=1e-4, run_dir=str(run_dir), pace_updates=pace_updates)
+    agent = TamerAgent(config, str(run_dir),
                        log=lambda level, text: None)
     agent.start()
     saliency_images = 0
@@ -196,16 +200,20 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[1])
     parser.add_argument('--graph-steps', type=int, default=10_000)
     parser.add_argument('--inprocess-steps', type=int, default=3_000)
+    parser.add_argument('--pace-updates', type=float, default=TamerConfig.pace_updates,
+                        help="tamer_node's pace_updates for both (0: the actor never waits "
+                             'for its learner, which then drops owed updates)')
     args = parser.parse_args()
     with tempfile.TemporaryDirectory(prefix='bench_graph_') as tmp:
         workdir = Path(tmp)
         load_before = os.getloadavg()[0]
-        local = in_process_run(args.inprocess_steps, workdir)
-        graph = graph_run(args.graph_steps, workdir)
+        local = in_process_run(args.inprocess_steps, workdir, args.pace_updates)
+        graph = graph_run(args.graph_steps, workdir, args.pace_updates)
         load_after = os.getloadavg()[0]
     print(f'Machine: {machine()}; load average {load_before:.1f} before, '
           f'{load_after:.1f} after (1 min); executor {executor_name()}')
-    print(f'Graph run: {graph["steps"]} steps in {graph["wall_s"]:.0f} s wall '
+    print(f'pace_updates {args.pace_updates:g}. '
+          f'Graph run: {graph["steps"]} steps in {graph["wall_s"]:.0f} s wall '
           f'(start-up {graph["startup_s"]:.1f} s), {graph["latency_n"]} latency samples; '
           f'in process: {local["steps"]} steps\n')
     print(table(graph, local))
