@@ -83,3 +83,18 @@ def test_bursts_of_utterances_all_reach_the_saliency_node(probe, start_node):
     assert node.log_text().count('utterance_stamped at ') == BURST + 1
     assert node.log_text().count('utterance at ') == BURST + 1
     assert node.stop(signal.SIGINT) == 0
+
+
+def test_feedback_sent_just_before_ctrl_c_is_logged(probe, start_node, tmp_path):
+    """The node takes what it was sent before the signal (rclpy alone had logged 0 of 50)."""
+    run = tmp_path / 'run'
+    tamer = start_node('tamer_node', {'run_dir': str(run), 'metrics_period_s': 0.5})
+    feedback = probe.publisher(Float32, topics.FEEDBACK, qos.HUMAN)
+    metrics = probe.subscribe(DiagnosticArray, topics.METRICS, qos.METRICS)
+    assert probe.wait_for_subscribers(feedback, timeout=STARTUP_S), tamer.log_text()[-2000:]
+    assert metrics.wait_count(1, STARTUP_S)  # matched both ways (see the burst test)
+    for i in range(50):
+        feedback.publish(Float32(data=1.0 if i % 2 else -1.0))
+    assert tamer.stop(signal.SIGINT) == 0
+    lines = (run / 'feedback_log.jsonl').read_text().splitlines()
+    assert len(lines) == 50, tamer.log_text()[-2000:]

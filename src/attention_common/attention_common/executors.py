@@ -18,7 +18,9 @@ EventsExecutor in Jazzy's rclpy 7.1.6 are worked around here (reproduced by
 
 import inspect
 import os
-from typing import Callable
+import threading
+import time
+from typing import Callable, Optional
 
 EXECUTOR_ENV = 'ATTENTION_EXECUTOR'
 EXECUTORS = ('events', 'single')
@@ -26,6 +28,8 @@ DEFAULT_EXECUTOR = 'events'
 SPIN_TIMEOUT_S = 0.1
 """Longest a spin_once waits, so a shutdown is seen within this time at worst."""
 SHUTDOWN_TIMEOUT_S = 2.0
+DRAIN_S = 0.5
+"""After a stop signal, how long a node still takes and handles what it was sent before."""
 
 
 def executor_name() -> str:
@@ -46,11 +50,23 @@ def make_executor(name: str = None, context=None):
     return SingleThreadedExecutor(context=context)
 
 
-def spin_until_shutdown(executor, context=None) -> None:
-    """Spin ``executor`` with ``spin_once`` until the context shuts down (see above)."""
+def spin_until_shutdown(executor, context=None, stop: Optional[threading.Event] = None) -> None:
+    """
+    Spin ``executor`` with ``spin_once`` until the context shuts down or ``stop`` is set.
+
+    After ``stop`` (a signal, see ``node_main``) it spins ``DRAIN_S`` more: what was sent to the
+    node before the signal (a person's last key press) is taken and handled, not left unread
+    in DDS when the process ends.
+    """
     import rclpy
-    while rclpy.ok(context=context):
+    while rclpy.ok(context=context) and not (stop is not None and stop.is_set()):
         executor.spin_once(timeout_sec=SPIN_TIMEOUT_S)
+    deadline = time.monotonic() + DRAIN_S
+    while stop is not None and rclpy.ok(context=context):
+        left = deadline - time.monotonic()
+        if left <= 0.0:
+            break
+        executor.spin_once(timeout_sec=min(left, SPIN_TIMEOUT_S))
 
 
 def release(executor, node) -> None:

@@ -2,13 +2,15 @@
 The Jazzy ``main()`` every node of the graph shares.
 
 ``rclpy.init``, build the node, spin it in the main thread (``executors.py``: rclpy's
-EventsExecutor unless ``ATTENTION_EXECUTOR=single``), and on Ctrl-C / SIGINT / SIGTERM destroy
-the node and shut down cleanly with exit code 0. A node that cannot start (a missing template
-file, say) raises ``StartupError`` from its constructor: the message is printed once, plainly,
-and the exit code is 1.
+EventsExecutor unless ``ATTENTION_EXECUTOR=single``), and on Ctrl-C / SIGINT / SIGTERM handle
+what was already sent to the node (``StopRequest``), destroy it and shut down cleanly with exit
+code 0. A node that cannot start (a missing template file, say) raises ``StartupError`` from
+its constructor: the message is printed once, plainly, and the exit code is 1.
 """
 
+import signal
 import sys
+import threading
 import time
 from typing import Callable, Optional
 
@@ -16,6 +18,7 @@ from attention_common.dds_memory import use_freed_payloads
 from attention_common.executors import make_executor, release, spin_until_shutdown
 import rclpy
 from rclpy.executors import ExternalShutdownException
+from rclpy.signals import SignalHandlerOptions
 
 
 SHUTDOWN_GRACE_S = 0.5
@@ -34,17 +37,43 @@ class StartupError(RuntimeError):
     """A node cannot start; the message says why and what to do."""
 
 
+class StopRequest:
+    """
+    SIGINT / SIGTERM handler: ask the node to stop, once it has handled what it was sent.
+
+    rclpy's own handler shuts the context down at once, and a message already delivered to the
+    node but not yet taken (feedback given just before Ctrl-C) was then never read. Before the
+    node spins (a long start-up) and at a second signal it stops at once (KeyboardInterrupt).
+    """
+
+    def __init__(self):
+        self.event = threading.Event()
+        self.spinning = False
+
+    def install(self) -> None:
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(sig, self)
+
+    def __call__(self, signum, frame) -> None:
+        if not self.spinning or self.event.is_set():
+            raise KeyboardInterrupt
+        self.event.set()
+
+
 def run_node(node_factory: Callable[[], object], args=None,
              executor_factory: Optional[Callable[[], object]] = None) -> int:
     """Run one node until shutdown; return the process exit code."""
     use_freed_payloads()  # before rclpy.init: Fast DDS reads its profile then
-    rclpy.init(args=args)
+    stop = StopRequest()
+    stop.install()
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     node = executor = None
     try:
         node = node_factory()
         executor = (executor_factory or make_executor)()
         executor.add_node(node)
-        spin_until_shutdown(executor)
+        stop.spinning = True
+        spin_until_shutdown(executor, stop=stop.event)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except StartupError as error:
