@@ -1,0 +1,1 @@
+"""The DoorKey-with-distractors task (MiniGrid): world, expert, progress and sentences."""
