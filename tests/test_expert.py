@@ -5,11 +5,11 @@ Also checks the critical positions against its route: it must pass within alpha 
 positions 0..5, in that order.
 """
 
-from env_node.core import EnvConfig, KEY_BIT, MontezumaEnv, RAM_INVENTORY
-from feedback_node.critical_positions import (
+from attention_tasks.montezuma.critical_positions import (
     critical_position_at, CRITICAL_POSITIONS, DEFAULT_RADIUS, distance)
-from feedback_node.expert import (
+from attention_tasks.montezuma.expert import (
     Phase, RoomOneExpert, SKULL_RAM, skull_x_from_frame, skull_x_from_ram, SkullTracker)
+from env_node.core import EnvConfig, KEY_BIT, MontezumaEnv, RAM_INVENTORY
 import numpy as np
 import pytest
 

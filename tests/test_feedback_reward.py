@@ -2,7 +2,7 @@
 
 import math
 
-from feedback_node.critical_positions import (
+from attention_tasks.montezuma.critical_positions import (
     critical_position_at, CRITICAL_POSITIONS, DEFAULT_RADIUS, nearest_critical_position)
 from feedback_node.reward import RewardConfig, RewardFunction, threshold_reward
 from feedback_node.trainer import TrainerConfig

@@ -1,7 +1,7 @@
 """Figure 5.1 utterances: each position, in between, the interval and the stuck rule."""
 
 from attention_common.stamps import frames_to_ns
-from feedback_node.critical_positions import CRITICAL_POSITIONS
+from attention_tasks.montezuma.critical_positions import CRITICAL_POSITIONS
 from feedback_node.utterances import (
     IntervalSchedule, sentence_for, SENTENCES, StuckDetector, UtteranceGenerator)
 import pytest

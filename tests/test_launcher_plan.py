@@ -16,7 +16,7 @@ from attention_bringup.progress import (
     ALIVE_STEPS, format_bar, parse_value, ProgressTracker, RECENT_ROWS, RECENT_STAMPS)
 from attention_bringup.report import ProgressWriter, read_rows_for_plot
 from attention_common.run_files import node_log, of_session, OVERRIDES_FILE
-from feedback_node.critical_positions import DEFAULT_RADIUS
+from attention_tasks.montezuma.critical_positions import DEFAULT_RADIUS
 from feedback_node.teacher import TRAINERS
 import pytest
 from saliency_node.saliency import BLUR_RADIUS

@@ -159,7 +159,7 @@ def test_greedy_action_becomes_the_rewarded_one(real_frames):
 @pytest.mark.slow
 def test_greedy_action_learns_to_depend_on_where_the_agent_is():
     """+1 for RIGHT left of x = 80 and for LEFT right of it: H must read the agent's place."""
-    expert_module = pytest.importorskip('feedback_node.expert')
+    expert_module = pytest.importorskip('attention_tasks.montezuma.expert')
     from env_node.core import EnvConfig, MontezumaEnv
     env = MontezumaEnv(EnvConfig(seed=2, warmup_steps=0))
     expert = expert_module.RoomOneExpert()

@@ -14,10 +14,10 @@ import time
 from attention_common import qos, topics
 from attention_common.joy_actions import action_to_joy, NUM_ACTIONS
 from attention_common.stamps import ns_to_stamp, stamp_to_ns
+from attention_tasks.montezuma.expert import FIRE_ACTIONS, RoomOneExpert
 from diagnostic_msgs.msg import DiagnosticArray
 from env_node.status import parse_status
 from feedback_node.action_effects import EffectTable, place_of, Situation
-from feedback_node.expert import FIRE_ACTIONS, RoomOneExpert
 from feedback_node.teacher import SeenStep
 from geometry_msgs.msg import Vector3Stamped
 from harness import wait_until

@@ -156,7 +156,7 @@ def main(argv=None) -> int:
     overrides = {item.split('=', 1)[0]: parse_value(item.split('=', 1)[1])
                  for item in args.set}
     if args.skull_gone_steps is not None:
-        from feedback_node import expert
+        from attention_tasks.montezuma import expert
         expert.SKULL_GONE_STEPS = args.skull_gone_steps
     results = []
     with tempfile.TemporaryDirectory() as workdir:

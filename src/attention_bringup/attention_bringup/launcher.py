@@ -114,7 +114,7 @@ class Launcher:
 
         from attention_bringup.monitor import GraphMonitor, spin_until_shutdown
         from env_node.core import STANDING_POSES
-        from feedback_node.critical_positions import critical_position_at
+        from attention_tasks.montezuma.critical_positions import critical_position_at
 
         apply_to_this_process(self.domain_id)
         use_freed_payloads()

@@ -18,7 +18,7 @@ from attention_bringup.graph import (
 from attention_bringup.params import (
     dump_params, GraphParams, load_params_file, merge_params, node_params, NodeParams)
 from attention_common.run_files import node_log, OPTIONS_FILE, OVERRIDES_FILE
-from feedback_node.critical_positions import DEFAULT_RADIUS
+from attention_tasks.montezuma.critical_positions import DEFAULT_RADIUS
 from feedback_node.human_like import HUMAN_LIKE_SETTING
 from feedback_node.teacher import TRAINERS
 

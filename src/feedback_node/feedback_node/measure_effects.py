@@ -23,12 +23,12 @@ import sys
 from typing import Iterator, List, Sequence, Tuple
 
 from attention_common.joy_actions import NUM_ACTIONS
+from attention_tasks.montezuma.expert import FIRE_ACTIONS, NOOP, phase_of, RIGHTFIRE, RoomOneExpert
 from env_node.core import (
     EnvConfig, MontezumaEnv, RAM_INVENTORY, RAM_LIVES, RAM_ROOM, RAM_X, RAM_Y)
 from feedback_node.action_effects import (
     AGREEMENT, build_table, FOLLOW_STEPS, Measured, MIN_STATES, MOOT_SHARE, partition_of,
     place_of, Situation, TABLE_PATH)
-from feedback_node.expert import FIRE_ACTIONS, NOOP, phase_of, RIGHTFIRE, RoomOneExpert
 import numpy as np
 
 DEFAULT_SEEDS = (0, 1, 2, 3, 4, 5)

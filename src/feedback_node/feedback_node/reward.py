@@ -16,7 +16,7 @@ Two variants of "a critical position":
 from dataclasses import dataclass
 from typing import NamedTuple, Optional, Tuple
 
-from feedback_node.critical_positions import (
+from attention_tasks.montezuma.critical_positions import (
     CRITICAL_POSITIONS, DEFAULT_RADIUS, distance, nearest_critical_position, OUTSIDE)
 
 VARIANTS = ('nearest', 'progress')

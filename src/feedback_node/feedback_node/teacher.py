@@ -24,9 +24,9 @@ from dataclasses import dataclass
 from typing import Dict, List, NamedTuple, Optional
 
 from attention_common.joy_actions import NUM_ACTIONS
+from attention_tasks.montezuma.critical_positions import critical_position_at
+from attention_tasks.montezuma.expert import FIRE_ACTIONS, Phase, RoomOneExpert
 from feedback_node.action_effects import EffectTable, place_of, Situation
-from feedback_node.critical_positions import critical_position_at
-from feedback_node.expert import FIRE_ACTIONS, Phase, RoomOneExpert
 from feedback_node.human_like import FeedbackScheduler, HumanLike
 from feedback_node.utterances import IntervalSchedule, SENTENCES, Utterance
 

@@ -19,7 +19,7 @@ import collections
 from typing import Deque, NamedTuple, Optional, Tuple
 
 from attention_common.stamps import NS_PER_S
-from feedback_node.critical_positions import (
+from attention_tasks.montezuma.critical_positions import (
     critical_position_at, DEFAULT_RADIUS, nearest_critical_position, OUTSIDE)
 
 SENTENCES = {

@@ -2,13 +2,13 @@
 tamer_pretrain: collect Room 1 frames from the real game and pretrain the autoencoder.
 
 Frames come from ``ALE/MontezumaRevenge-v5`` (no sticky actions, seeded), played by the scripted
-expert (``feedback_node.expert.RoomOneExpert``) with random detours, or by a seeded random walk
-if that package is not installed. As in the thesis the autoencoder sees frames only; with
-``--saliency-fraction`` some frames are added again as saliency-like images (blurred outside a
-few random boxes), which we tried and dropped: reconstructing the blur everywhere costs the
-small code the detail of the agent. Only the encoder's weights are written
-(``tamer_node/weights/encoder.pt`` by default): same seed and options, same frames, same
-weights (one thread, CPU).
+expert (``attention_tasks.montezuma.expert.RoomOneExpert``) with random detours, or by a seeded
+random walk if that package is not installed. As in the thesis the autoencoder sees frames only;
+with ``--saliency-fraction`` some frames are added again as saliency-like images (blurred outside a
+few random boxes), which we tried and dropped: reconstructing the blur everywhere costs the small
+code the detail of the agent. Only the encoder's weights are written
+(``tamer_node/weights/encoder.pt`` by default): same seed and options, same frames, same weights
+(one thread, CPU).
 
     tamer_pretrain                       # the shipped weights
     tamer_pretrain --frames 4000 --epochs 20 --out /tmp/encoder.pt
@@ -37,9 +37,9 @@ BLUR_KSIZE = (2 * BLUR_RADIUS + 1,) * 2  # the saliency node's default radius
 
 
 def load_expert():
-    """Return (RoomOneExpert(), skull_x_from_ram), or (None, None) without feedback_node."""
+    """Return (RoomOneExpert(), skull_x_from_ram), or (None, None) without attention_tasks."""
     try:
-        from feedback_node.expert import RoomOneExpert, skull_x_from_ram
+        from attention_tasks.montezuma.expert import RoomOneExpert, skull_x_from_ram
     except ImportError:
         return None, None
     return RoomOneExpert(), skull_x_from_ram

@@ -19,10 +19,10 @@ from attention_common.image_codec import image_to_numpy, ImageFormatError
 from attention_common.node_main import run_node, StartupError
 from attention_common.parameters import declare_dataclass
 from attention_common.utterance import MAX_UTTERANCE_CHARS
+from attention_tasks.montezuma.critical_positions import critical_position_at
 import cv2
 from diagnostic_msgs.msg import DiagnosticArray
 from env_node.status import parse_status
-from feedback_node.critical_positions import critical_position_at
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient

@@ -11,8 +11,8 @@ the t-tests on steps to p count an unreached trial as budget + 1 steps (a lower 
 true value, so differences in steps are if anything understated).
 
 Where the agent spends its steps: the fraction of a trial's recorded steps within alpha
-(``feedback_node.critical_positions.DEFAULT_RADIUS``) of each critical position (-1: of none),
-averaged over trials, with the trainer's mean h. Result files written before these fields
+(``attention_tasks.montezuma.critical_positions.DEFAULT_RADIUS``) of each critical position (-1: of
+none), averaged over trials, with the trainer's mean h. Result files written before these fields
 existed count as unknown (left out), not as zero.
 """
 

@@ -11,7 +11,7 @@ from typing import List, Mapping, Optional
 
 from attention_bringup.study.analysis import BASELINE, SETTLED_SHARE, TESTED_POSITIONS
 from attention_bringup.study.trials import POSITIONS
-from feedback_node.critical_positions import DEFAULT_RADIUS
+from attention_tasks.montezuma.critical_positions import DEFAULT_RADIUS
 from feedback_node.reward import RewardConfig
 
 ALPHA = 0.05

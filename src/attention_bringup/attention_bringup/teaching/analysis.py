@@ -12,7 +12,7 @@ from typing import Dict, List, Mapping, Optional, Sequence
 
 from attention_bringup.study import stats
 from attention_bringup.teaching.settings import COMPARISONS, SETTINGS, TARGETS
-from feedback_node.critical_positions import DEFAULT_RADIUS
+from attention_tasks.montezuma.critical_positions import DEFAULT_RADIUS
 
 MEASURES = {
     'steps_to_key': 'steps to the first key (no key: the budget)',

@@ -15,7 +15,7 @@ from attention_bringup.progress import ALIVE_STEPS
 from attention_bringup.teaching.analysis import MEASURES
 from attention_bringup.teaching.settings import SETTINGS
 from attention_common.run_files import TEACHING_LOG
-from feedback_node.critical_positions import DEFAULT_RADIUS
+from attention_tasks.montezuma.critical_positions import DEFAULT_RADIUS
 
 FIGURE = 'key_by_step.png'
 

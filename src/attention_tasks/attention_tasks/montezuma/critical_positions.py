@@ -5,13 +5,13 @@ Coordinates are RAM coordinates, as the env publishes them on ``agent_position``
 grows to the right, y = ram[43] grows upward (the top floor is y 235, the platforms below it
 y 192, the bottom floor y 148).
 
-How they were found: the scripted expert (``feedback_node.expert``) was run through the real
-emulator (no warm-up, no sticky actions) and each position is where the expert stands when the
-thesis's corresponding stage begins: where it lands at the bottom of the middle ladder, where
-it catches the rope, the lower right platform above the right ladder, where it steps off the
-right ladder, where it reaches the left ladder, and where it stands at the top of the left
-ladder below the key. ``tests/test_expert.py`` checks that the expert passes within
-``DEFAULT_RADIUS`` (the alpha threshold) of each, in order, on its way to the key.
+How they were found: the scripted expert (``attention_tasks.montezuma.expert``) was run through the
+real emulator (no warm-up, no sticky actions) and each position is where the expert stands when the
+thesis's corresponding stage begins: where it lands at the bottom of the middle ladder, where it
+catches the rope, the lower right platform above the right ladder, where it steps off the right
+ladder, where it reaches the left ladder, and where it stands at the top of the left ladder below
+the key. ``tests/test_expert.py`` checks that the expert passes within ``DEFAULT_RADIUS`` (the
+alpha threshold) of each, in order, on its way to the key.
 """
 
 import math
