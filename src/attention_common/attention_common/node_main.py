@@ -82,9 +82,9 @@ def run_node(node_factory: Callable[[], object], args=None,
     except Exception:
         if _still_running():
             raise
-        # SIGINT / SIGTERM while the node was being built, or while the executor was taking a
-        # message: rclpy shuts the context down meanwhile, and creating a publisher or taking
-        # from a subscription then fails. That is stopping, not an error.
+        # The context was shut down meanwhile (rclpy.shutdown from elsewhere while the node was
+        # being built or a message taken): creating a publisher or taking from a subscription
+        # then fails. That is stopping, not an error.
     finally:
         if executor is not None:
             # Let go of the node's entities first: the EventsExecutor holds them "in use", and
