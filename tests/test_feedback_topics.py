@@ -318,3 +318,24 @@ def test_stamped_feedback_has_no_plain_copy_unless_asked(probe, start_node):
     assert listener.utterance.snapshot()
     assert listener.feedback.snapshot() == []
     assert trainer.stop(signal.SIGINT) == 0
+
+
+def test_judgements_wait_until_every_expected_reader_is_matched(probe, start_node):
+    """wait_feedback_subscribers 2: one reader matched is not enough; then both get them all."""
+    first = TrainerListener(probe)
+    positions = probe.publisher(PointStamped, topics.AGENT_POSITION, qos.STEP_DATA)
+    trainer = start_node('feedback_node', {'utterance_interval': 0.0,
+                                           'wait_feedback_subscribers': 2})
+    assert probe.wait_for_subscribers(positions, timeout=STARTUP_S)
+    assert wait_until(lambda: probe.node.count_publishers(topics.FEEDBACK_STAMPED) >= 1,
+                      STARTUP_S)
+    publish_positions(positions, range(0, 20))
+    # Utterances are not held: once they are in, the judgements were made (and held).
+    assert first.utterance_stamped.wait_count(1, REPLY_S), trainer.log_text()[-2000:]
+    assert first.feedback_stamped.snapshot() == []
+    second = probe.subscribe(Vector3Stamped, topics.FEEDBACK_STAMPED, qos.HUMAN)
+    assert first.feedback_stamped.wait_count(19, REPLY_S), trainer.log_text()[-2000:]
+    assert second.wait_count(19, REPLY_S)
+    assert (sorted(stamp_to_ns(m.header.stamp) for m in second.snapshot())
+            == sorted(stamp_to_ns(m.header.stamp) for m in first.feedback_stamped.snapshot()))
+    assert trainer.stop(signal.SIGINT) == 0

@@ -79,6 +79,8 @@ def test_every_node_took_part(finished_run):
     assert summary['trainer'] == 'teacher' and summary['human_like'] is False
     assert 0.3 * STEPS <= counts['feedback_stamped'] <= STEPS
     assert summary['feedback_count'] == counts['feedback_stamped']
+    # The learner and the monitor heard the same judgements (feedback_node waits for both).
+    assert summary['learner_log']['feedback'] == counts['feedback_stamped']
     assert summary['first_key_step'] is None or 0 < summary['first_key_step'] <= STEPS
     assert summary['furthest_position_stood'] <= summary['furthest_position']
     assert counts['utterance_stamped'] >= 1

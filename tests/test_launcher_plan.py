@@ -199,7 +199,8 @@ def test_plan_without_options_changes_only_budget_run_dir_and_trainer(tmp_path):
     # env_node waits for the graph's own listeners, as in the launch file: the launcher hears
     # env_status before the learners start, so it sees the first step without a wait of its own.
     assert plan.overrides == {'env_node': {'max_steps': DEFAULT_STEPS},
-                              'feedback_node': {'trainer': 'teacher'},
+                              'feedback_node': {'trainer': 'teacher',
+                                                'wait_feedback_subscribers': 2},
                               'tamer_node': {'run_dir': str(plan.run_dir),
                                              'greedy_margin': TEACHING_GREEDY_MARGIN}}
 

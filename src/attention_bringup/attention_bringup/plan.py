@@ -256,6 +256,7 @@ def launcher_overrides(options: LaunchOptions, seed: int, run_dir: Path,
         overrides['env_node']['rate_hz'] = REALTIME_RATE_HZ
         overrides['tamer_node']['pace_updates'] = 0.0  # the env does not wait: act at once
     overrides['feedback_node']['trainer'] = options.trainer
+    overrides['feedback_node']['wait_feedback_subscribers'] = 2  # the learner and the monitor
     if options.trainer == 'teacher' and not options.thesis_learner:
         overrides['tamer_node']['greedy_margin'] = TEACHING_GREEDY_MARGIN
     if options.human_like:

@@ -29,6 +29,10 @@ class FeedbackConfig(TrainerConfig):
     """true: publish every stamped feedback on the plain feedback topic too (the learner logs
     such a copy as a duplicate); false: only the late teacher, which has no stamp to give, uses
     the plain topic."""
+    wait_feedback_subscribers: int = 1
+    """Judgements are held (in order, with their stamps) until the feedback topic has this many
+    matched subscribers: a volatile topic gives a message only to readers matched when it is
+    sent (attention_train sets 2: the learner and its monitor)."""
     summary_period: float = 30.0
     """Wall seconds between the log lines of counts (when they changed)."""
 
@@ -36,6 +40,9 @@ class FeedbackConfig(TrainerConfig):
         """Check the node's fields, then the chosen trainer's (the teacher's alone for it)."""
         if self.summary_period <= 0:
             raise ValueError(f'summary_period must be > 0, got {self.summary_period}')
+        if self.wait_feedback_subscribers < 1:
+            raise ValueError('wait_feedback_subscribers must be >= 1, got '
+                             f'{self.wait_feedback_subscribers}')
         if self.trainer not in TRAINERS:
             raise ValueError(f'trainer must be one of {TRAINERS}, got {self.trainer!r}')
         self.trainer_config()

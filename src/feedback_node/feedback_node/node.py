@@ -57,6 +57,7 @@ class FeedbackNode(Node):
             raise StartupError(str(error)) from None
         self._synthetic = config.synthetic
         self._plain_copies = config.plain_copies
+        self._wait_subscribers = config.wait_feedback_subscribers
         self._now_ns = None  # the newest step stamp heard: this node's "now"
         self._restarts_logged = 0
         self._counts = {'bad_positions': 0, 'bad_status': 0, 'heard_utterances': 0,
@@ -146,14 +147,15 @@ class FeedbackNode(Node):
 
     def _send_held(self) -> None:
         """
-        Publish the held feedback once the learner's subscription is matched.
+        Publish the held feedback once ``wait_feedback_subscribers`` readers are matched.
 
         The topics are volatile: a message published before a reader matched never reaches it
-        (a 200-step run can end before discovery is done), so judgements wait here instead.
+        (a 300-step run can end before discovery is done: once the learner, once the launcher's
+        monitor heard none of 300), so judgements wait here instead.
         """
         stamped = not (self._kind == 'teacher' and self._config.delayed)
         publisher = self._feedback_stamped_pub if stamped else self._feedback_pub
-        if not publisher.get_subscription_count():
+        if publisher.get_subscription_count() < self._wait_subscribers:
             return
         while self._unsent:
             stamp_ns, h, y, z = self._unsent.popleft()
