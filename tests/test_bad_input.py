@@ -285,6 +285,10 @@ def test_the_teacher_survives_bad_env_status_among_a_real_envs(probe, start_node
     assert trainer.stop(signal.SIGINT) == 0 and env.stop(signal.SIGINT) == 0
 
 
+FRAME_MB = 4000 * 4000 * 3 / 2 ** 20
+"""The 4000x4000 rgb8 frame's pixels (45.8 MB)."""
+
+
 def resident_mb(pid):
     return resident_memory_kb(pid)['VmRSS'] / 1024
 
@@ -314,6 +318,8 @@ def test_a_huge_frame_leaves_no_lasting_memory(probe, start_node, tmp_path, node
         observation.publish(image(np.zeros((4000, 4000, 3), np.uint8), T0 + i + 1))
     assert wait_until(lambda: node.log_text().count('size 4000x4000') == 2, REPLY_S)
     grown = resident_mb(node.process.pid) - before
-    assert grown < 16, f'{node_name} grew {grown:.1f} MB'
+    # A frame kept costs 46 MB, two 92; the node's own first seconds (torch, the learner
+    # thread) have added up to 30 MB on a loaded CI machine, so the line is one frame.
+    assert grown < FRAME_MB, f'{node_name} grew {grown:.1f} MB'
     assert 'XMLPARSER' not in node.log_text()  # the profile loaded whole
     assert node.stop(signal.SIGINT) == 0

@@ -152,12 +152,16 @@ def test_a_dead_node_is_named_and_the_rest_are_stopped(tmp_path):
 @pytest.mark.topics
 def test_a_killed_run_is_resumed_to_its_budget(tmp_path):
     run_dir = tmp_path / 'run'
-    budget = 900
+    budget = 1500
     launcher = subprocess.Popen(
         [LAUNCHER, '--steps', str(budget), '--run-dir', str(run_dir), '--quiet', '--seed', '2'],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    checkpoint = run_dir / 'checkpoints' / 'checkpoint.pt'
     try:
         pids = _wait_for_steps(launcher, run_dir, 200)
+        # The kill comes once the first checkpoint is on disk (after the first update): at
+        # 270 steps/s, 200 steps can come before it.
+        assert wait_until(lambda: checkpoint.exists() or launcher.poll() is not None, 60)
         os.kill(pids['tamer_node'], signal.SIGKILL)
         _, stderr = launcher.communicate(timeout=90)
     finally:
@@ -166,7 +170,7 @@ def test_a_killed_run_is_resumed_to_its_budget(tmp_path):
     assert 'tamer_node died (killed by SIGKILL)' in stderr
     first = _read_json(run_dir / 'summary.json')
     assert first['status'] == 'node_failed' and first['steps'] < budget
-    assert (run_dir / 'checkpoints' / 'checkpoint.pt').exists()  # an early one
+    assert checkpoint.exists()  # an early one
 
     result = subprocess.run([LAUNCHER, '--resume', str(run_dir), '--quiet'],
                             capture_output=True, text=True, timeout=240)
