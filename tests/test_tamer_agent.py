@@ -4,6 +4,7 @@ import json
 import threading
 import time
 
+from attention_common.run_files import CHECKPOINT_DIR, CHECKPOINT_FILE, FEEDBACK_LOG
 from attention_common.utterance import MAX_UTTERANCE_CHARS
 from harness import wait_until
 import numpy as np
@@ -13,8 +14,7 @@ from tamer_node.config import TamerConfig
 from tamer_node.credit import NS_PER_S
 from tamer_node.model import Encoder, FEATURE_SIZE, INPUT_SHAPE, preprocess, to_input
 from tamer_node.persistence import (
-    CHECKPOINT_DIR, CHECKPOINT_FILE, DiskWriter, FEEDBACK_LOG, FeedbackLog, KIND_ACTION,
-    KIND_OBSERVATION, load_checkpoint, StepJournal)
+    DiskWriter, FeedbackLog, KIND_ACTION, KIND_OBSERVATION, load_checkpoint, StepJournal)
 import torch
 
 torch.set_num_threads(1)

@@ -8,6 +8,3 @@ every episode. ``montezuma`` holds Room 1's critical positions and scripted expe
 launcher, the console, the teacher and the encoder's pretraining used to import from
 feedback_node); Room 1's RAM state and env factory are still in env_node.
 """
-
-TASKS = ('montezuma', 'doorkey')
-"""Task names; ``montezuma`` (Room 1) is the default of every node."""

@@ -27,6 +27,7 @@ import sys
 import time
 from typing import Callable, Optional
 
+from attention_common.run_files import CHECKPOINT_DIR, FEEDBACK_LOG, METRICS_CSV, STEPS_DIR
 import cv2
 import numpy as np
 # BadInput is raised by the acting path; node.py imports it from here.
@@ -40,9 +41,7 @@ from tamer_node.intake import FeedbackIntake
 from tamer_node.learner import Learner
 from tamer_node.learner_loop import LearnerWorker
 from tamer_node.model import Encoder, FEATURE_SIZE, HModel, load_encoder
-from tamer_node.persistence import (
-    CHECKPOINT_DIR, DiskWriter, FEEDBACK_LOG, FeedbackLog, METRICS_CSV, MetricsCsv, StepJournal,
-    STEPS_DIR)
+from tamer_node.persistence import DiskWriter, FeedbackLog, MetricsCsv, StepJournal
 import torch
 
 DEFAULT_ENCODER = Path(__file__).resolve().parent / 'weights' / 'encoder.pt'

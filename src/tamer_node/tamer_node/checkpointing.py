@@ -14,6 +14,7 @@ from pathlib import Path
 import time
 from typing import Callable, Dict, Iterable, List, Optional, Tuple
 
+from attention_common.run_files import CHECKPOINT_DIR, FEEDBACK_LOG, STEPS_DIR
 import numpy as np
 from tamer_node.buffer import FeedbackBuffer
 from tamer_node.config import TamerConfig
@@ -22,8 +23,7 @@ from tamer_node.history import other_kind, StepHistory
 from tamer_node.learner import Learner
 from tamer_node.pairing import stored_item
 from tamer_node.persistence import (
-    CHECKPOINT_DIR, DiskWriter, FEEDBACK_LOG, FeedbackLog, KIND_NAMES, load_checkpoint,
-    save_checkpoint, StepJournal, STEPS_DIR)
+    DiskWriter, FeedbackLog, KIND_NAMES, load_checkpoint, save_checkpoint, StepJournal)
 import torch
 
 CHECKPOINT_FORMAT = 'tamer_node.checkpoint/3'  # /3: steps known by (session, stamp)

@@ -33,8 +33,7 @@ import threading
 from typing import Callable, Dict, Iterator, List, Optional, Tuple
 import zlib
 
-from attention_common.run_files import (  # noqa: F401 (the learner's files, named there)
-    CHECKPOINT_DIR, CHECKPOINT_FILE, FEEDBACK_LOG, METRICS_CSV, STEPS_DIR)
+from attention_common.run_files import CHECKPOINT_DIR, CHECKPOINT_FILE
 import numpy as np
 import torch
 
