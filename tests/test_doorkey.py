@@ -2,7 +2,7 @@
 
 from attention_tasks.doorkey.expert import DROP, next_action, PICKUP, TOGGLE
 from attention_tasks.doorkey.language import progress, sentence
-from attention_tasks.doorkey.world import DistractorDoorKeyEnv, DoorKeyConfig, state_of
+from attention_tasks.doorkey.world import DistractorDoorKeyEnv, DoorKeyConfig, observe, state_of
 import numpy as np
 import pytest
 
@@ -44,6 +44,20 @@ def test_distractors_are_of_the_other_colours_and_frames_are_large_enough():
     assert [o for o in objects if o.color == env.door.color] == [env.key]
     frame = env.render()
     assert frame.shape == (8 * 16, 8 * 16, 3) and frame.dtype == np.uint8
+    view = observe(env)  # the agent's own: 7 x 7 cells of 16 px, the agent at the bottom centre
+    assert view.shape == (7 * 16, 7 * 16, 3) and view.dtype == np.uint8
+    agent_tile = view[6 * 16:, 3 * 16:4 * 16]
+    assert (agent_tile[..., 0] > 200).sum() > 30 and (agent_tile[..., 1] > 150).sum() == 0  # red
+
+
+def test_the_agents_view_turns_with_it():
+    env = DistractorDoorKeyEnv()
+    env.reset(seed=5)
+    before = observe(env)
+    env.step(0)  # left: the world turns right in the agent's view, the agent stays put
+    after = observe(env)
+    assert not np.array_equal(before, after)
+    assert np.array_equal(before[6 * 16:, 3 * 16:4 * 16], after[6 * 16:, 3 * 16:4 * 16])
 
 
 @pytest.mark.parametrize('seed', SEEDS)
@@ -112,7 +126,7 @@ def test_sentences_name_the_next_subgoal_with_its_colour():
 
 @pytest.mark.parametrize('config, message', [
     (DoorKeyConfig(size=6), 'size'), (DoorKeyConfig(distractors=99), 'distractors'),
-    (DoorKeyConfig(tile_size=4), 'tile_size')])
+    (DoorKeyConfig(max_episode_steps=-1), 'max_episode_steps')])
 def test_bad_configs_say_what_is_wrong(config, message):
     with pytest.raises(ValueError, match=message):
         DistractorDoorKeyEnv(config)

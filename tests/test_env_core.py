@@ -5,7 +5,7 @@ from dataclasses import fields
 from attention_common.parameters import field_docs
 from attention_common.stamps import frames_to_ns
 from env_node.config import EnvNodeConfig
-from env_node.core import (EnvConfig, FRAME_HEIGHT, FRAME_WIDTH, MontezumaEnv, NO_ACTION,
+from attention_tasks.montezuma.env import (EnvConfig, FRAME_HEIGHT, FRAME_WIDTH, MontezumaEnv, NO_ACTION,
                            RAM_INVENTORY, RAM_X, RamState, read_ram_state, STANDING_POSES)
 from env_node.status import Counters, NO_LATENCY, parse_status, STATUS_KEYS, status_values
 import numpy as np
@@ -282,7 +282,7 @@ def test_observations_are_fresh_rgb_frames(env):
 
 @pytest.mark.parametrize('config, error', [
     ({'frameskip': 0}, ValueError), ({'sticky_actions': 1.5}, ValueError),
-    ({'sticky_actions': -0.1}, ValueError)])
+    ({'sticky_actions': -0.1}, ValueError), ({'warmup_steps': -1}, ValueError)])
 def test_bad_config_is_refused(config, error):
     with pytest.raises(error):
         make_env(**config)
@@ -320,17 +320,19 @@ def test_status_values_round_trip(env):
 
 # -- the node's parameters -----------------------------------------------------------------
 
-def test_node_config_is_the_games_plus_the_nodes_each_documented():
+def test_node_config_is_the_task_and_the_nodes_each_documented():
     names = [f.name for f in fields(EnvNodeConfig)]
-    assert names[:len(fields(EnvConfig))] == [f.name for f in fields(EnvConfig)]
+    assert names[0] == 'task' and EnvNodeConfig().task == 'montezuma'
+    assert not set(names) & {f.name for f in fields(EnvConfig)}  # the world's: from the task
     assert 'env_id' not in names and 'start_room' not in names  # fixed, not parameters
-    docs = field_docs(EnvNodeConfig)
-    assert all(docs.get(name) for name in names)
+    for cls in (EnvNodeConfig, EnvConfig):
+        docs = field_docs(cls)
+        assert all(docs.get(f.name) for f in fields(cls))
 
 
 @pytest.mark.parametrize('values, message', [
     ({'rate_hz': -1.0}, 'rate_hz must be >= 0'), ({'action_timeout': 0.0}, 'action_timeout > 0'),
-    ({'max_steps': -1}, 'max_steps >= 0'), ({'warmup_steps': -1}, 'warmup_steps must be >= 0'),
+    ({'max_steps': -1}, 'max_steps >= 0'),
 ])
 def test_node_config_says_which_value_is_wrong(values, message):
     with pytest.raises(ValueError, match=message):

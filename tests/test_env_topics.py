@@ -267,7 +267,9 @@ def test_a_signal_during_start_up_exits_cleanly(start_node, sig):
     ({'frameskip': 0}, 'frameskip'),
     ({'action_timeout': 0.0}, 'action_timeout'),
     ({'rate_hz': 'fast'}, 'rate_hz'),
-], ids=['frameskip', 'action_timeout', 'rate_hz'])
+    ({'task': 'pong'}, "unknown task 'pong'; installed tasks: doorkey, montezuma"),
+    ({'task': 'doorkey', 'distractors': 99}, 'distractors must be in 0..12'),
+], ids=['frameskip', 'action_timeout', 'rate_hz', 'task', 'doorkey_distractors'])
 def test_bad_parameters_stop_it_with_a_clear_message(start_node, params, message):
     env = start_node('env_node', params)
     assert env.process.wait(timeout=STARTUP_S) == 1
@@ -287,3 +289,31 @@ def test_first_step_waits_for_the_expected_subscribers(probe, start_node):
     assert positions.wait_for(
         lambda m: stamps(m)[:1] == stamps(observations.snapshot())[:1], REPLY_S)
     assert env.stop() == 0
+
+
+def test_doorkey_over_the_same_topics(start_node, probe):
+    """task:=doorkey: 128x128 frames, MiniGrid's actions carried by joystick actions."""
+    from attention_tasks.doorkey.env import STEP_S
+    from attention_tasks.task import load_task
+    task = load_task('doorkey')
+    learner = Learner(probe)
+    env = start_node('env_node', {'task': 'doorkey', 'seed': 3, 'action_timeout': 30.0})
+    observation = learner.connect()
+    assert (observation.height, observation.width) == (128, 128)
+    first_ns = stamp_to_ns(observation.header.stamp)
+    status = learner.status_at(first_ns)
+    assert status['subgoals'] == 0 and status['heldout'] is False and len(status['grid']) == 384
+    point = learner.position_at(first_ns)
+    assert (point.x, point.y) == (status['x'], status['y'])
+    turned = learner.step(observation, task.joy_action(1))  # MiniGrid right: joystick RIGHT
+    status = learner.status_at(stamp_to_ns(turned.header.stamp))
+    assert status['action'] == 1 and status['direction'] == (
+        learner.status_at(first_ns)['direction'] + 1) % 4
+    assert stamp_to_ns(turned.header.stamp) - first_ns == round(STEP_S * 1e9)
+    learner.send(stamp_to_ns(turned.header.stamp), 6)  # UPRIGHT carries no DoorKey action
+    assert env.wait_for_log('is no action of task doorkey', REPLY_S) and env.alive()
+    learner.send(stamp_to_ns(turned.header.stamp), task.joy_action(2))  # forward: still pending
+    after = learner.next_observation(stamp_to_ns(turned.header.stamp))
+    status = learner.status_at(stamp_to_ns(after.header.stamp))
+    assert status['action'] == 2 and status['bad_actions'] == 1 and status['agent_step'] == 2
+    assert env.stop(signal.SIGINT) == 0

@@ -9,7 +9,7 @@ skull's RAM position and whether the agent holds the key.
 
 from attention_tasks.montezuma.expert import RoomOneExpert, SKULL_RAM, skull_x_from_ram
 import cv2
-from env_node.core import EnvConfig, MontezumaEnv
+from attention_tasks.montezuma.env import EnvConfig, MontezumaEnv
 import numpy as np
 import pytest
 from saliency_node.grounding import Grounder

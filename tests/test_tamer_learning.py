@@ -160,7 +160,7 @@ def test_greedy_action_becomes_the_rewarded_one(real_frames):
 def test_greedy_action_learns_to_depend_on_where_the_agent_is():
     """+1 for RIGHT left of x = 80 and for LEFT right of it: H must read the agent's place."""
     expert_module = pytest.importorskip('attention_tasks.montezuma.expert')
-    from env_node.core import EnvConfig, MontezumaEnv
+    from attention_tasks.montezuma.env import EnvConfig, MontezumaEnv
     env = MontezumaEnv(EnvConfig(seed=2, warmup_steps=0))
     expert = expert_module.RoomOneExpert()
     step = env.reset()
@@ -413,7 +413,7 @@ def test_every_config_field_has_a_docstring_and_validates():
 
 
 def test_frame_shape_matches_the_env():
-    from env_node.core import FRAME_HEIGHT, FRAME_WIDTH
+    from attention_tasks.montezuma.env import FRAME_HEIGHT, FRAME_WIDTH
     assert FRAME_SHAPE == (FRAME_HEIGHT, FRAME_WIDTH, 3)
 
 

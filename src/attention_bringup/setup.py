@@ -10,7 +10,8 @@ setup(
     packages=find_packages(exclude=['test']),
     # The YAML files travel with the Python package (the launcher finds them next to its code)
     # and are also installed to share/ for ros2 launch.
-    package_data={package_name: ['config/*.yaml', 'config/conditions/*.yaml']},
+    package_data={package_name: ['config/*.yaml', 'config/conditions/*.yaml',
+                               'config/tasks/*.yaml']},
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
@@ -18,6 +19,7 @@ setup(
         ('share/' + package_name + '/config', glob(package_name + '/config/*.yaml')),
         ('share/' + package_name + '/config/conditions',
          glob(package_name + '/config/conditions/*.yaml')),
+        ('share/' + package_name + '/config/tasks', glob(package_name + '/config/tasks/*.yaml')),
     ],
     install_requires=['setuptools'],
     zip_safe=True,
@@ -31,6 +33,7 @@ setup(
             'attention_train = attention_bringup.launcher:main',
             'attention_study = attention_bringup.study.cli:main',
             'attention_teaching = attention_bringup.teaching.cli:main',
+            'attention_study_minigrid = attention_bringup.minigrid_study.cli:main',
         ],
     },
 )

@@ -6,12 +6,13 @@ setup(
     name=package_name,
     version='0.1.0',
     packages=find_packages(exclude=['test']),
+    package_data={package_name: ['doorkey/templates/manifest.yaml', 'doorkey/templates/*.png']},
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
     ],
     install_requires=['setuptools'],
-    zip_safe=True,
+    zip_safe=False,
     maintainer='Language-attention TAMER maintainers',
     maintainer_email='maintainers@example.org',
     description='Task knowledge, one module per task: the world, its state, the expert, '
@@ -19,6 +20,7 @@ setup(
     license='Apache-2.0',
     entry_points={
         'console_scripts': [
+            'doorkey_make_templates = attention_tasks.doorkey.make_templates:main',
         ],
     },
 )

@@ -10,7 +10,7 @@ setup(
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
     ],
-    package_data={package_name: ['weights/encoder.pt']},
+    package_data={package_name: ['weights/*.pt']},
     install_requires=['setuptools'],
     zip_safe=True,
     maintainer='Language-attention TAMER maintainers',

@@ -25,7 +25,7 @@ from attention_common.image_codec import image_to_numpy, numpy_to_image
 from attention_common.isolation import apply_to_this_process, isolated_environ, reserved_domain
 from attention_common.joy_actions import action_to_joy, NUM_ACTIONS
 from attention_common.stamps import stamp_to_ns
-from env_node.core import EnvConfig, MontezumaEnv
+from attention_tasks.montezuma.env import EnvConfig, MontezumaEnv
 import numpy as np
 import rclpy
 from rclpy.executors import SingleThreadedExecutor

@@ -83,7 +83,7 @@ def in_process_run(steps: int, workdir: Path, pace_updates: float) -> dict:
     import torch
     torch.set_num_threads(1)
     from attention_common.stamps import NS_PER_S
-    from env_node.core import EnvConfig, MontezumaEnv
+    from attention_tasks.montezuma.env import EnvConfig, MontezumaEnv
     from feedback_node.trainer import SyntheticTrainer, TrainerConfig
     from saliency_node.grounding import Grounder
     from saliency_node.manifest import load_manifest, load_template_images

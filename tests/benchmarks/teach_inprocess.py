@@ -39,7 +39,7 @@ def parse_value(text: str):
 
 def run_trial(seed: int, steps: int, human_like: bool, overrides: dict, pace: float,
               workdir: Path, table: str = '') -> dict:
-    from env_node.core import EnvConfig, MontezumaEnv
+    from attention_tasks.montezuma.env import EnvConfig, MontezumaEnv
     from feedback_node.action_effects import EffectTable, STRICT
     from feedback_node.human_like import HUMAN_LIKE_SETTING
     from feedback_node.teacher import SeenStep, Teacher, TeacherConfig

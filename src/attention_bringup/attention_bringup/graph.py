@@ -14,6 +14,7 @@ NODES = ('env_node', 'feedback_node', 'saliency_node', 'tamer_node')
 CONFIG_DIR = Path(__file__).resolve().parent / 'config'
 GRAPH_FILE = 'graph.yaml'
 CONDITIONS_DIR = 'conditions'
+TASKS_DIR = 'tasks'
 
 # The study conditions (issue 7 and the thesis, chapter 5), one parameter file each.
 CONDITIONS = (
@@ -34,6 +35,16 @@ def condition_file(condition: str, config_dir: Path = CONFIG_DIR) -> Path:
     return config_dir / CONDITIONS_DIR / f'{condition}.yaml'
 
 
-def base_params_files(condition: str, config_dir: Path = CONFIG_DIR) -> List[Path]:
-    """Return the files every node gets, in order: the graph defaults, then the condition."""
-    return [graph_file(config_dir), condition_file(condition, config_dir)]
+def task_file(task: str, config_dir: Path = CONFIG_DIR) -> Path:
+    """Return the parameter file of a task (it need not exist: Room 1's does not)."""
+    return config_dir / TASKS_DIR / f'{task}.yaml'
+
+
+def base_params_files(condition: str, config_dir: Path = CONFIG_DIR,
+                      task: str = 'montezuma') -> List[Path]:
+    """
+    Return the files every node gets, in order: the graph defaults, the task's (if it has
+    one), then the condition.
+    """
+    tasks = [task_file(task, config_dir)] if task_file(task, config_dir).exists() else []
+    return [graph_file(config_dir), *tasks, condition_file(condition, config_dir)]

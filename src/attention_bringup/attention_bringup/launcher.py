@@ -40,6 +40,7 @@ from attention_common.isolation import apply_to_this_process, isolated_environ, 
 from attention_common.run_files import (
     CHECKPOINT_DIR, FEEDBACK_LOG, GALLERY_FILE, LEARNING_CURVE_FILE, LOGS_DIR, METRICS_CSV,
     of_session, OPTIONS_FILE, OVERRIDES_FILE, PARAMS_FILE, PIDS_FILE, PROGRESS_FILE, SUMMARY_FILE)
+from attention_tasks.task import load_task
 
 STARTUP_TIMEOUT_S = 300.0
 """Longest wait for the first step (node start-up includes importing torch on a busy CPU)."""
@@ -113,7 +114,7 @@ class Launcher:
         from rclpy.signals import SignalHandlerOptions
 
         from attention_bringup.monitor import GraphMonitor, spin_until_shutdown
-        from env_node.core import STANDING_POSES
+        from attention_tasks.montezuma.env import STANDING_POSES
         from attention_tasks.montezuma.critical_positions import critical_position_at
 
         apply_to_this_process(self.domain_id)
@@ -121,9 +122,14 @@ class Launcher:
         context = Context()
         rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)
         radius = self.plan.critical_radius  # the feedback node's, so progress agrees with it
+        task = load_task(self.plan.options.task)
+        montezuma = task.name == 'montezuma'  # Room 1 measures standing on a position too
         tracker = ProgressTracker(position_of=functools.partial(critical_position_at,
                                                                 radius=radius),
-                                  standing_poses=STANDING_POSES)
+                                  milestone_of=None if montezuma else functools.partial(
+                                      task.milestone_of, radius=radius),
+                                  standing_poses=STANDING_POSES if montezuma else frozenset(),
+                                  solved_of=task.solved)
         continuation = self.plan.continuation
         progress_file = self.plan.run_dir / PROGRESS_FILE
         if continuation.session > 1 and progress_file.exists():
@@ -427,7 +433,10 @@ class Launcher:
             'startup_s': first['wall_time_s'] if first else None,
             'training_time_s': round(training_s, 2),
             'steps_per_s': round((steps - first_steps) / training_s, 2) if training_s else 0.0,
+            'task': self.plan.options.task,
+            'milestones': list(load_task(self.plan.options.task).milestones),
             'episodes': len(tracker.episodes),
+            'episodes_solved': len(tracker.solved_episodes),
             'lives_lost': tracker.lives_lost,
             'keys': tracker.keys,
             'first_key_step': tracker.first_key_step,

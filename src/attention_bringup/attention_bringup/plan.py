@@ -19,14 +19,14 @@ from attention_bringup.params import (
     dump_params, GraphParams, load_params_file, merge_params, node_params, NodeParams)
 from attention_common.run_files import node_log, OPTIONS_FILE, OVERRIDES_FILE
 from attention_tasks.montezuma.critical_positions import DEFAULT_RADIUS
+from attention_tasks.montezuma.task import REALTIME_RATE_HZ  # noqa: F401 (Room 1's, for tests)
+from attention_tasks.task import DEFAULT_TASK, load_task, task_names
 from feedback_node.human_like import HUMAN_LIKE_SETTING
 from feedback_node.teacher import TRAINERS
 
 DEFAULT_STEPS = 10000
 """Agent steps of a default run (the thesis's trial): about 4 minutes on 2 busy CPU cores."""
 
-REALTIME_RATE_HZ = 15.0
-"""env_node ``rate_hz`` for ``--realtime``: with frameskip 4, exactly the Atari's 60 Hz."""
 
 CONSOLE = 'trainer_console'
 CONSOLE_PORT = 8080
@@ -37,9 +37,20 @@ clipped to [-1, 1], actions within 0.1 of the best tied, ties broken at random. 
 of 10 graph trials stood 3,000 steps at the left ladder's foot never trying UP, and no
 human-like trial in one process took the key (docs/teaching.md)."""
 
-HUMAN_LIKE_WINDOW_S = (0.2, 1.6)
-"""tamer_node ``window_min_s``, ``window_max_s`` with ``--human-like``: the credit window of a
-learner that knows how late its trainer is. The teacher speaks 0.3-1.5 s after it sees the
+def human_like_window_s(step_s: float) -> tuple:
+    """
+    Return the credit window of ``--human-like`` for steps of ``step_s`` simulation seconds.
+
+    The teacher speaks ``feedback_delay_min``-``feedback_delay_max`` after it sees the step after
+    the one it judges, so up to ``delay_max + step_s`` after that step began: Room 1 (1/15 s)
+    (0.2, 1.6), DoorKey (1 s) (0.2, 2.5).
+    """
+    return (0.2, round(HUMAN_LIKE_SETTING.feedback_delay_max + step_s, 1))
+
+
+HUMAN_LIKE_WINDOW_S = human_like_window_s(1.0 / REALTIME_RATE_HZ)
+"""tamer_node ``window_min_s``, ``window_max_s`` with ``--human-like`` in Room 1: the credit
+window of a learner that knows how late its trainer is. The teacher speaks 0.3-1.5 s after it sees the
 step after the one it judges, so 0.37-1.63 s after that step began; Deep TAMER's [0.2, 4] s
 (the default, for a person of unknown delay) spreads each feedback over 57 steps instead of 21
 (measured in one process, seeds 100-103: agreement with the expert 0.24-0.46 with [0.2, 1.6],
@@ -52,6 +63,8 @@ class LaunchOptions:
 
     steps: int = DEFAULT_STEPS
     """Budget of agent steps (env_node ``max_steps``)."""
+    task: str = DEFAULT_TASK
+    """The task of every node (``attention_tasks``): 'montezuma' (Room 1) or 'doorkey'."""
     condition: str = DEFAULT_CONDITION
     """Study condition, by its name in ``graph.CONDITIONS``."""
     seed: Optional[int] = None
@@ -122,9 +135,12 @@ def chosen_domain(options: LaunchOptions, environ) -> Optional[int]:
 def argument_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog='attention_train',
-        description="Train the Deep TAMER agent on Montezuma's Revenge (Room 1): start the four "
-                    'nodes, show progress, stop them at the end of the budget and write a run '
-                    'folder.')
+        description="Train the Deep TAMER agent on Montezuma's Revenge (Room 1) or another task: "
+                    'start the four nodes, show progress, stop them at the end of the budget and '
+                    'write a run folder.')
+    parser.add_argument('--task', choices=task_names(), default=DEFAULT_TASK,
+                        help="the task of every node (default %(default)s: Room 1; 'doorkey': "
+                             'MiniGrid DoorKey with distractors, a new layout every episode)')
     parser.add_argument('--steps', type=positive_int, default=DEFAULT_STEPS,
                         help=f'budget of agent steps (default {DEFAULT_STEPS})')
     parser.add_argument('--condition', choices=CONDITIONS, default=DEFAULT_CONDITION,
@@ -132,7 +148,8 @@ def argument_parser() -> argparse.ArgumentParser:
     parser.add_argument('--seed', type=int, default=None,
                         help='seed of every node (default: the parameter files, 0)')
     parser.add_argument('--realtime', action='store_true',
-                        help=f'step at {REALTIME_RATE_HZ:g} Hz (real time) instead of lockstep')
+                        help=f'step in real time instead of lockstep ({REALTIME_RATE_HZ:g} Hz in '
+                             "Room 1, the task's realtime_hz in another)")
     parser.add_argument('--no-synthetic', dest='synthetic', action='store_false',
                         help='no synthetic trainer: a person gives feedback with ros2 topic pub '
                              '(the tamer then credits it with the Deep TAMER window)')
@@ -243,7 +260,11 @@ def launcher_overrides(options: LaunchOptions, seed: int, run_dir: Path,
                        continuation: Optional[Continuation] = None) -> GraphParams:
     """Return the parameters the launcher's options fix, one section per node."""
     continuation = continuation or Continuation()
+    task = load_task(options.task)
     overrides: GraphParams = {node: {} for node in NODES}
+    if task.name != DEFAULT_TASK:  # the default run's parameter files stay as they were
+        for node in NODES:
+            overrides[node]['task'] = task.name
     overrides['env_node']['max_steps'] = int(options.steps) - continuation.steps_done
     overrides['tamer_node']['run_dir'] = str(run_dir)
     if continuation.session > 1:
@@ -253,7 +274,7 @@ def launcher_overrides(options: LaunchOptions, seed: int, run_dir: Path,
             if node == 'env_node' or 'seed' in node_params(files_params, node):
                 overrides[node]['seed'] = int(seed)
     if options.realtime:
-        overrides['env_node']['rate_hz'] = REALTIME_RATE_HZ
+        overrides['env_node']['rate_hz'] = task.realtime_hz
         overrides['tamer_node']['pace_updates'] = 0.0  # the env does not wait: act at once
     overrides['feedback_node']['trainer'] = options.trainer
     overrides['feedback_node']['wait_feedback_subscribers'] = 2  # the learner and the monitor
@@ -263,15 +284,17 @@ def launcher_overrides(options: LaunchOptions, seed: int, run_dir: Path,
         overrides['feedback_node'].update(vars(HUMAN_LIKE_SETTING))
         overrides['tamer_node']['credit'] = 'window'  # late and plain: the window attributes it
         overrides['tamer_node']['window_min_s'], overrides['tamer_node']['window_max_s'] = (
-            HUMAN_LIKE_WINDOW_S)
+            human_like_window_s(1.0 / task.realtime_hz))
     if not options.synthetic:
         overrides['feedback_node']['synthetic'] = False
         overrides['tamer_node']['credit'] = 'window'  # a person's feedback comes late
     return {node: values for node, values in overrides.items() if values}
 
 
-def default_run_dir(cwd: Path, condition: str, seed: int, now: datetime.datetime) -> Path:
-    return cwd / 'runs' / f'{now:%Y%m%d-%H%M%S}-{condition}-seed{seed}'
+def default_run_dir(cwd: Path, condition: str, seed: int, now: datetime.datetime,
+                    task: str = DEFAULT_TASK) -> Path:
+    named = '' if task == DEFAULT_TASK else f'{task}-'
+    return cwd / 'runs' / f'{now:%Y%m%d-%H%M%S}-{named}{condition}-seed{seed}'
 
 
 def build_plan(options: LaunchOptions, bin_dir: Path, cwd: Path,
@@ -284,10 +307,13 @@ def build_plan(options: LaunchOptions, bin_dir: Path, cwd: Path,
     budget, the tamer ``resume``, and the node logs of this session names of their own).
     """
     continuation = continuation or Continuation()
+    if options.trainer == 'thesis' and options.task != DEFAULT_TASK:
+        raise ValueError(f"--trainer thesis measures Room 1's critical positions; task "
+                         f'{options.task} is taught by the teacher (--trainer teacher)')
     if continuation.steps_done >= options.steps:
         raise ValueError(f'the run has done its {options.steps} steps already: nothing to '
                          'resume')
-    files = base_params_files(options.condition)
+    files = base_params_files(options.condition, task=options.task)
     files += [(cwd / path).resolve() for path in options.params_files]
     files_params = merge_params(load_params_file(path) for path in files)
     seed = options.seed
@@ -296,7 +322,8 @@ def build_plan(options: LaunchOptions, bin_dir: Path, cwd: Path,
     if options.run_dir is not None:
         run_dir = (cwd / options.run_dir).resolve()
     else:
-        run_dir = default_run_dir(cwd, options.condition, seed, now or datetime.datetime.now())
+        run_dir = default_run_dir(cwd, options.condition, seed, now or datetime.datetime.now(),
+                                  options.task)
     overrides = launcher_overrides(options, seed, run_dir, files_params, continuation)
     merged = merge_params([files_params, overrides])
     effective = {node: node_params(merged, node) for node in NODES}
@@ -308,7 +335,8 @@ def build_plan(options: LaunchOptions, bin_dir: Path, cwd: Path,
             argv += ['--params-file', str(path)]
         commands.append(NodeCommand(node, argv, run_dir / node_log(node, continuation.session)))
     if options.console:  # not a node of the study's graph: its own parameters only
-        argv = [str(bin_dir / CONSOLE), '--ros-args', '-p', f'port:={int(options.console_port)}']
+        argv = [str(bin_dir / CONSOLE), '--ros-args', '-p', f'port:={int(options.console_port)}',
+                '-p', f'task:={options.task}']
         log = run_dir / node_log(CONSOLE, continuation.session)
         commands.append(NodeCommand(CONSOLE, argv, log))
     return LaunchPlan(options=options, run_dir=run_dir, seed=seed, params_files=all_files,

@@ -20,7 +20,7 @@ PROGRESS_COLUMNS = (
     'agent_step', 'sim_time_s', 'wall_time_s', 'episode', 'episode_step', 'lives', 'has_key',
     'reward', 'episode_return', 'x', 'y', 'room', 'position', 'furthest_position',
     'feedback_count', 'feedback_sum', 'utterance_count', 'saliency_count', 'pose',
-    'action', 'furthest_stood', 'life_lost', 'session',
+    'action', 'furthest_stood', 'life_lost', 'session', 'heldout',
 )
 
 ALIVE_STEPS = 15
@@ -70,6 +70,13 @@ class ProgressTracker:
 
     position_of: Callable[[float, float], int]
     """(x, y) in RAM coordinates -> critical position index, -1 in between."""
+    milestone_of: Optional[Callable[[Mapping[str, object]], int]] = None
+    """The task's measure (``Task.milestone_of``) on a step's env_status values: when set, it
+    takes the place of ``position_of`` (DoorKey: the last sub-goal done, 0 key .. 2 goal)."""
+    solved_of: Callable[[Mapping[str, object]], bool] = lambda values: False
+    """The task's success (``Task.solved``) on a step's values: its episode counts as solved."""
+    solved_episodes: set = field(default_factory=set)
+    """(session, episode) of the episodes solved."""
     start_room: int = START_ROOM
     counters: Counters = field(default_factory=Counters)
     rows: Deque[dict] = field(default_factory=lambda: collections.deque(maxlen=RECENT_ROWS))
@@ -131,7 +138,10 @@ class ProgressTracker:
 
     def _add_row(self, stamp_ns: int, values: Mapping[str, object], wall_s: float) -> None:
         x, y, room = (values.get(key, 0) for key in ('x', 'y', 'room'))
-        position = self.position_of(x, y) if int(room) == self.start_room else -1
+        if self.milestone_of is not None:
+            position = self.milestone_of(values)
+        else:
+            position = self.position_of(x, y) if int(room) == self.start_room else -1
         step = self.step_offset + int(values.get('agent_step', self.row_count))
         if position > self.furthest:
             self.furthest = position
@@ -148,6 +158,8 @@ class ProgressTracker:
         self._stand(position, step, values)
         if 'episode' in values:
             self.episodes.add((self.session, values['episode']))
+            if self.solved_of(values):
+                self.solved_episodes.add((self.session, values['episode']))
         self.step_at_stamp[stamp_ns] = step
         while len(self.step_at_stamp) > RECENT_STAMPS:
             self.step_at_stamp.popitem(last=False)
@@ -173,6 +185,7 @@ class ProgressTracker:
             'furthest_stood': self.furthest_stood,
             'life_lost': int(bool(values.get('life_lost'))),
             'session': self.session,
+            'heldout': int(bool(values.get('heldout', False))),  # DoorKey: a held-out layout
         }
         self.rows.append(row)
         self._new_rows.append(row)

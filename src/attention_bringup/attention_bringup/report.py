@@ -110,8 +110,12 @@ def summary_lines(summary: Mapping) -> List[str]:
     counts = summary.get('message_counts', {})
     firsts = summary.get('first_step_at_position', {})
     furthest = summary.get('furthest_position', -1)
-    reached = (f'furthest critical position {furthest} (first at step {firsts[str(furthest)]})'
-               if furthest >= 0 and str(furthest) in firsts else 'no critical position reached')
+    milestones = summary.get('milestones') or [f'critical position {i}' for i in range(6)]
+    name = milestones[furthest] if 0 <= furthest < len(milestones) else str(furthest)
+    kind = 'critical position' if summary.get('task', 'montezuma') == 'montezuma' else 'sub-goal'
+    reached = (f'furthest {kind} {name.replace("critical position ", "")} (first at step '
+               f'{firsts[str(furthest)]})' if furthest >= 0 and str(furthest) in firsts
+               else f'no {kind} reached')
     metrics = summary.get('metrics', {})
     loss = metrics.get('train/loss')
     loss_text = (f', loss {loss:.4g}' if isinstance(loss, (int, float)) and math.isfinite(loss)
@@ -123,6 +127,8 @@ def summary_lines(summary: Mapping) -> List[str]:
     first_key = summary.get('first_key_step')
     key_text = (f'the key at step {first_key} ({summary.get("keys", 0)} in all)'
                 if first_key is not None else 'no key')
+    if summary.get('task', 'montezuma') != 'montezuma':
+        key_text = f'{summary.get("episodes_solved", 0)} solved'
     return [
         f'{summary.get("steps", 0)} steps in {format_duration(summary.get("wall_time_s", 0))} '
         f'({summary.get("steps_per_s", 0):.1f} steps/s), {summary.get("episodes", 0)} episodes, '

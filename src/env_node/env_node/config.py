@@ -1,17 +1,26 @@
-"""env_node's parameters in one dataclass: the game's (``core.EnvConfig``) and the node's own."""
+"""env_node's parameters: ``task``, the task's world settings (its dataclass), the node's own."""
 
 from dataclasses import dataclass
 
-from env_node.core import EnvConfig
+from attention_tasks.task import DEFAULT_TASK
 
 RUNTIME_PARAMETERS = ('paused',)
 """Settable while the node runs; every other parameter is read once at start (read-only)."""
 
 
 @dataclass
-class EnvNodeConfig(EnvConfig):
-    """Each field is a ROS parameter of the same name; its docstring is the description."""
+class EnvNodeConfig:
+    """
+    Each field is a ROS parameter of the same name; its docstring is the description.
 
+    The world's parameters come from the task (``Task.env_config``: Room 1's frameskip,
+    sticky_actions, seed, warmup_steps, end_on_room_exit, end_on_life_loss; DoorKey's size,
+    distractors, ...), declared once ``task`` is read.
+    """
+
+    task: str = DEFAULT_TASK
+    """The task to run: 'montezuma' (Room 1, the thesis's) or 'doorkey' (MiniGrid, a new layout
+    every episode); any module attention_tasks.<task>.task."""
     rate_hz: float = 0.0
     """Steps per second on a steady timer with the latest action; 0 = lockstep (wait for the
     action stamped with the pending observation)."""
@@ -33,9 +42,7 @@ class EnvNodeConfig(EnvConfig):
     with it)."""
 
     def validate(self) -> None:
-        """Raise ValueError saying which value is impossible (the emulator checks its own)."""
+        """Raise ValueError saying which value is impossible (the world checks its own)."""
         if self.rate_hz < 0 or self.action_timeout <= 0 or self.max_steps < 0:
             raise ValueError('rate_hz must be >= 0, action_timeout > 0 and max_steps >= 0 '
                              f'(got {self.rate_hz}, {self.action_timeout}, {self.max_steps})')
-        if self.warmup_steps < 0:
-            raise ValueError(f'warmup_steps must be >= 0, got {self.warmup_steps}')

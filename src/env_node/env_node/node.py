@@ -1,5 +1,8 @@
 """
-env_node: Montezuma's Revenge over topics, in lockstep with the learner or in real time.
+env_node: the task's world over topics, in lockstep with the learner or in real time.
+
+The world comes from the task named by ``task`` (``attention_tasks``: Montezuma's Revenge Room 1
+by default, or DoorKey); the node itself knows no game.
 
 Lockstep (``rate_hz`` 0): publish observation T, wait for the Joy stamped T, step, publish the
 next. An action with another stamp is dropped and counted, so a late or duplicate action is never
@@ -17,14 +20,14 @@ import time
 
 from attention_common import qos, topics
 from attention_common.image_codec import numpy_to_image
-from attention_common.joy_actions import joy_to_action, JoyActionError
+from attention_common.joy_actions import ACTION_MEANINGS, joy_to_action, JoyActionError
 from attention_common.node_main import run_node, StartupError
 from attention_common.parameters import declare_dataclass
 from attention_common.stamps import ns_to_stamp, stamp_to_ns
+from attention_tasks.task import load_task, Step, UnknownTask
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from env_node.config import EnvNodeConfig, RUNTIME_PARAMETERS
-from env_node.core import MontezumaEnv, Step
-from env_node.status import Counters, NO_LATENCY, STATUS_KEYS, STATUS_NAME, status_values
+from env_node.status import Counters, NO_LATENCY, STATUS_NAME, status_values
 from geometry_msgs.msg import PointStamped
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.clock import Clock, ClockType
@@ -53,8 +56,10 @@ class EnvNode(Node):
         config = declare_dataclass(self, EnvNodeConfig, runtime=RUNTIME_PARAMETERS)
         try:
             config.validate()
-        except ValueError as error:
+            self._task = task = load_task(config.task)
+        except (ValueError, UnknownTask) as error:
             raise StartupError(str(error)) from None
+        world = declare_dataclass(self, task.env_config)
         self._paused = config.paused
         self._deferred = None  # lockstep, paused: the answer to apply on resume
         self._rate_hz = config.rate_hz
@@ -62,9 +67,10 @@ class EnvNode(Node):
         self._max_steps = config.max_steps
         self._wait_subscribers = ((self.OBS, config.wait_observation_subscribers),
                                   (self.POSITION, config.wait_position_subscribers))
-        self.get_logger().info(f'starting {config.env_id}, {config.warmup_steps} warm-up steps')
+        self.get_logger().info(f'starting {task.env_id} (task {task.name}), '
+                               f'{world.warmup_steps} warm-up steps')
         try:
-            self._env = MontezumaEnv(config)
+            self._env = task.make_env(world)
         except ValueError as error:
             raise StartupError(str(error)) from None
 
@@ -73,8 +79,8 @@ class EnvNode(Node):
         self._obs_msg.header.frame_id = SCREEN_FRAME
         self._position_msg = PointStamped()
         self._position_msg.header.frame_id = RAM_FRAME
-        self._key_values = [KeyValue(key=key) for key in STATUS_KEYS]
-        self._status = DiagnosticStatus(name=STATUS_NAME, hardware_id=config.env_id,
+        self._key_values = []  # one per status key, made at the first step, refilled after
+        self._status = DiagnosticStatus(name=STATUS_NAME, hardware_id=task.env_id,
                                         level=DiagnosticStatus.OK, values=self._key_values)
         self._status_msg = DiagnosticArray(status=[self._status])
         self._clock_msg = ClockMsg()
@@ -115,8 +121,8 @@ class EnvNode(Node):
             self._start_timer = self.create_timer(START_POLL_S, self._on_start_poll, clock=steady)
         mode = f'real time at {self._rate_hz} Hz' if self._rate_hz > 0 else 'lockstep'
         self.get_logger().info(
-            f'{config.env_id} ready ({mode}, frameskip {config.frameskip}, seed {config.seed}, '
-            f'{config.warmup_steps} warm-up steps done, first stamp '
+            f'{task.env_id} ready ({mode}, {task.num_actions} actions, seed {world.seed}, '
+            f'{world.warmup_steps} warm-up steps done, first stamp '
             f'{self._current.sim_time_ns} ns)')
 
     # -- publishing -------------------------------------------------------------------------
@@ -126,14 +132,15 @@ class EnvNode(Node):
         stamp = ns_to_stamp(step.sim_time_ns)
         self._clock_msg.clock = stamp
         self._clock_pub.publish(self._clock_msg)
-        state = step.state
         self._position_msg.header.stamp = stamp
         point = self._position_msg.point
-        point.x, point.y, point.z = float(state.x), float(state.y), float(state.room)
+        point.x, point.y, point.z = step.state.position()
         self._position_pub.publish(self._position_msg)
-        for key_value, (_, value) in zip(
-                self._key_values,
-                status_values(step, self._counters, finished, self._latency_ms)):
+        values = status_values(step, self._counters, finished, self._latency_ms)
+        if len(values) != len(self._key_values):  # the first step: the task's keys
+            self._key_values = [KeyValue(key=key) for key, _ in values]
+            self._status.values = self._key_values
+        for key_value, (_, value) in zip(self._key_values, values):
             key_value.value = value
         self._status.message = ('finished' if finished else
                                 'episode over' if step.done else 'running')
@@ -270,7 +277,7 @@ class EnvNode(Node):
 
     def _on_action(self, msg: Joy) -> None:
         try:
-            action = joy_to_action(msg.axes, msg.buttons)
+            action = self._task_action(joy_to_action(msg.axes, msg.buttons))
         except JoyActionError as error:
             with self._lock:
                 dropped = self._drop(bad=True)
@@ -307,6 +314,16 @@ class EnvNode(Node):
                 f'action stamped {stamp_ns} ns dropped ({age}): the pending observation is '
                 f'stamped {pending} ns ({dropped} dropped so far)',
                 throttle_duration_sec=LOG_THROTTLE_S)
+
+    def _task_action(self, joy_action: int) -> int:
+        """Return the task action a joystick action carries; JoyActionError if none."""
+        action = self._task.action_of_joy(joy_action)
+        if action is None:
+            carried = ', '.join(f'{ACTION_MEANINGS[j]} = {name}' for j, name in
+                                zip(self._task.joy_actions, self._task.action_names))
+            raise JoyActionError(f'joystick {ACTION_MEANINGS[joy_action]} is no action of '
+                                 f'task {self._task.name} ({carried})')
+        return action
 
     def destroy_node(self) -> None:
         """Release the emulator with the node."""

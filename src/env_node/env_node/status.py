@@ -7,7 +7,7 @@ booleans as ``true`` / ``false``. ``parse_status`` turns them back into typed va
 
 from typing import Dict, Iterable, List, NamedTuple, Tuple, Union
 
-from env_node.core import Step
+from attention_tasks.montezuma.env import Step
 
 STATUS_NAME = 'env_node'
 """``DiagnosticStatus.name`` of every env_status message."""
@@ -16,12 +16,16 @@ INT_KEYS = ('agent_step', 'episode', 'episode_step', 'lives', 'room', 'x', 'y', 
             'dropped_actions', 'bad_actions', 'action', 'pose', 'skull_x')
 FLOAT_KEYS = ('reward', 'episode_return', 'action_latency_ms')
 BOOL_KEYS = ('has_key', 'terminated', 'truncated', 'life_lost', 'finished')
+TEXT_KEYS = ('carrying', 'door_color', 'grid')
+"""Keys of other tasks whose values stay strings; other unknown keys are read as what they
+look like (true/false, an integer, a float, else a string)."""
 
 STATUS_KEYS = ('agent_step', 'episode', 'episode_step', 'lives', 'has_key', 'reward',
                'episode_return', 'terminated', 'truncated', 'life_lost', 'room', 'x', 'y',
                'timeouts', 'dropped_actions', 'bad_actions', 'finished', 'action_latency_ms',
                'action', 'pose', 'skull_x')
-"""Every key, in the order the node publishes them."""
+"""Every key of Room 1, in the order the node publishes them; another task's state keys that
+are not among them follow, in the order its ``status()`` gives them."""
 
 NO_LATENCY = -1.0
 """``action_latency_ms`` of a step no lockstep answer led to (the first one, real time)."""
@@ -52,23 +56,35 @@ def status_values(step: Step, counters: Counters, finished: bool,
     ``action_latency_ms``: wall time from publishing the observation this step answered to
     receiving its action (the closed loop as env_node sees it).
     """
-    state = step.state
     values = {
         'agent_step': step.agent_step, 'episode': step.episode,
-        'episode_step': step.episode_step, 'lives': state.lives, 'has_key': state.has_key,
-        'reward': step.reward, 'episode_return': step.episode_return,
-        'terminated': step.terminated, 'truncated': step.truncated,
-        'life_lost': step.life_lost, 'room': state.room, 'x': state.x, 'y': state.y,
+        'episode_step': step.episode_step, 'reward': step.reward,
+        'episode_return': step.episode_return, 'terminated': step.terminated,
+        'truncated': step.truncated, 'life_lost': step.life_lost,
         'timeouts': counters.timeouts, 'dropped_actions': counters.dropped_actions,
         'bad_actions': counters.bad_actions, 'finished': finished,
-        'action_latency_ms': round(action_latency_ms, 3),
-        'action': step.action, 'pose': state.pose, 'skull_x': state.skull_x,
+        'action_latency_ms': round(action_latency_ms, 3), 'action': step.action,
     }
-    return [(key, _text(values[key])) for key in STATUS_KEYS]
+    state = step.state.status()
+    values.update(state)
+    keys = [key for key in STATUS_KEYS if key in values]
+    keys += [key for key in state if key not in STATUS_KEYS]
+    return [(key, _text(values[key])) for key in keys]
+
+
+def _guess(value: str) -> Union[bool, int, float, str]:
+    if value in ('true', 'false'):
+        return value == 'true'
+    for kind in (int, float):
+        try:
+            return kind(value)
+        except ValueError:
+            pass
+    return value
 
 
 def parse_status(pairs: Iterable[Tuple[str, str]]) -> Dict[str, Union[bool, int, float, str]]:
-    """Return typed values of ``(key, value)`` pairs; unknown keys stay strings."""
+    """Return typed values of ``(key, value)`` pairs (see ``TEXT_KEYS`` for unknown keys)."""
     parsed: Dict[str, Union[bool, int, float, str]] = {}
     for key, value in pairs:
         if key in INT_KEYS:
@@ -77,6 +93,8 @@ def parse_status(pairs: Iterable[Tuple[str, str]]) -> Dict[str, Union[bool, int,
             parsed[key] = float(value)
         elif key in BOOL_KEYS:
             parsed[key] = value == 'true'
-        else:
+        elif key in TEXT_KEYS:
             parsed[key] = value
+        else:
+            parsed[key] = _guess(value)
     return parsed

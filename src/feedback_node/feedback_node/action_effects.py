@@ -42,7 +42,7 @@ class Situation(NamedTuple):
     place: str
     """``'ladder'`` at either end of a ladder (UP or DOWN may take it), else ``'open'``."""
     pose: int
-    """The agent's sprite (``env_node.core.RAM_POSE``)."""
+    """The agent's sprite (``attention_tasks.montezuma.env.RAM_POSE``)."""
     held: bool
     """The button was pressed at the step before (fire acts on a press, so a second press in
     a row does nothing)."""

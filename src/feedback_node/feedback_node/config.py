@@ -1,10 +1,13 @@
-"""feedback_node's parameters in one dataclass: the two trainers' and the node's own."""
+"""feedback_node's parameters in one dataclass, the two trainers' and the node's own."""
 
 from dataclasses import dataclass, fields
 from typing import Union
 
-from feedback_node.teacher import TeacherConfig, TRAINERS
-from feedback_node.trainer import TrainerConfig
+from attention_tasks.task import DEFAULT_TASK, load_task
+from feedback_node.judging import TeacherConfig
+from feedback_node.task_teacher import load_knowledge, TaskTeacher
+from feedback_node.teacher import Teacher, TRAINERS
+from feedback_node.trainer import SyntheticTrainer, TrainerConfig
 
 RUNTIME_PARAMETERS = ('synthetic',)
 """Settable while the node runs; every other parameter is read once at start (read-only)."""
@@ -19,6 +22,9 @@ class FeedbackConfig(TrainerConfig):
     human-like knobs, seed), then the node's. The teacher uses only ``TeacherConfig``'s.
     """
 
+    task: str = DEFAULT_TASK
+    """The task taught: 'montezuma' (Room 1, both trainers) or 'doorkey' (MiniGrid, the teacher
+    only); any attention_tasks.<task> with a task module (and a teaching module, to teach it)."""
     trainer: str = 'thesis'
     """'thesis': h from the position (equations 4.1/4.2, the study); 'teacher': +1 when the
     action does what the expert's would, -1 otherwise, nothing while no action can matter."""
@@ -45,9 +51,25 @@ class FeedbackConfig(TrainerConfig):
                              f'{self.wait_feedback_subscribers}')
         if self.trainer not in TRAINERS:
             raise ValueError(f'trainer must be one of {TRAINERS}, got {self.trainer!r}')
+        load_task(self.task)  # UnknownTask (a ValueError) names the installed tasks
+        if self.task != DEFAULT_TASK:
+            if self.trainer == 'thesis':
+                raise ValueError(
+                    f"trainer 'thesis' measures Room 1's critical positions: it teaches only "
+                    f'task {DEFAULT_TASK}; task {self.task!r} needs trainer:=teacher')
+            load_knowledge(self.task)  # UnknownTeacher (a ValueError): no teaching module
         self.trainer_config()
 
     def trainer_config(self) -> Union[TeacherConfig, TrainerConfig]:
         """Build the chosen trainer's config from these fields (it checks them)."""
         cls = TeacherConfig if self.trainer == 'teacher' else TrainerConfig
         return cls(**{f.name: getattr(self, f.name) for f in fields(cls)})
+
+    def make_trainer(self) -> Union[Teacher, TaskTeacher, SyntheticTrainer]:
+        """Build the chosen trainer: the thesis's, Room 1's teacher, or the task's teacher."""
+        config = self.trainer_config()
+        if self.trainer == 'thesis':
+            return SyntheticTrainer(config)
+        if self.task == DEFAULT_TASK:
+            return Teacher(config)
+        return TaskTeacher(load_knowledge(self.task), load_task(self.task).num_actions, config)

@@ -1,8 +1,9 @@
 """
 What makes a synthetic trainer human-like: feedback on some steps only, late, sometimes wrong.
 
-Shared by both trainers (``trainer.SyntheticTrainer``, ``teacher.Teacher``). All off by default:
-feedback on every step, at once, always right. Seeded, so a trial is reproducible.
+Shared by every trainer (``trainer.SyntheticTrainer``, the teachers' ``judging.ActionTeacher``).
+All off by default: feedback on every step, at once, always right. Seeded, so a trial is
+reproducible.
 """
 
 from dataclasses import dataclass

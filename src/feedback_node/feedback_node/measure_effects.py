@@ -23,9 +23,9 @@ import sys
 from typing import Iterator, List, Sequence, Tuple
 
 from attention_common.joy_actions import NUM_ACTIONS
-from attention_tasks.montezuma.expert import FIRE_ACTIONS, NOOP, phase_of, RIGHTFIRE, RoomOneExpert
-from env_node.core import (
+from attention_tasks.montezuma.env import (
     EnvConfig, MontezumaEnv, RAM_INVENTORY, RAM_LIVES, RAM_ROOM, RAM_X, RAM_Y)
+from attention_tasks.montezuma.expert import FIRE_ACTIONS, NOOP, phase_of, RIGHTFIRE, RoomOneExpert
 from feedback_node.action_effects import (
     AGREEMENT, build_table, FOLLOW_STEPS, Measured, MIN_STATES, MOOT_SHARE, partition_of,
     place_of, Situation, TABLE_PATH)

@@ -2,8 +2,9 @@
 feedback_node: a synthetic trainer over topics, or a listener when a person trains.
 
 ``trainer`` chooses which: ``thesis`` (equations 4.1/4.2 on the agent's position, every study
-condition) or ``teacher`` (judges each action against the scripted expert's, from
-``env_status``: ``feedback_node.teacher``).
+condition; Room 1 only) or ``teacher`` (judges each action against the expert's, from
+``env_status``: ``feedback_node.teacher`` for ``task`` montezuma, ``feedback_node.task_teacher``
+with ``attention_tasks.<task>.teaching`` for any other).
 
 Subscribes ``agent_position``. With ``synthetic`` true, for every position (step T') it
 publishes the feedback judging the action of the previous step T (``feedback_stamped``, stamp
@@ -22,13 +23,12 @@ from attention_common import qos, topics
 from attention_common.node_main import run_node, StartupError
 from attention_common.parameters import declare_dataclass
 from attention_common.stamps import NS_PER_S, ns_to_stamp, stamp_to_ns
+from attention_tasks.task import DEFAULT_TASK
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from env_node.status import parse_status, STATUS_NAME
 from feedback_node.config import FeedbackConfig, RUNTIME_PARAMETERS
 from feedback_node.human_input import (
     excerpt, feedback_problem, position_problem, utterance_problem)
-from feedback_node.teacher import SeenStep, Teacher
-from feedback_node.trainer import SyntheticTrainer
 from feedback_node.utterances import Utterance
 from geometry_msgs.msg import PointStamped, Vector3Stamped
 from rcl_interfaces.msg import SetParametersResult
@@ -50,9 +50,9 @@ class FeedbackNode(Node):
         try:
             config = declare_dataclass(self, FeedbackConfig, runtime=RUNTIME_PARAMETERS)
             self._kind = config.trainer
+            self._task = config.task
             self._config = config.trainer_config()
-            self._trainer = (Teacher(self._config) if self._kind == 'teacher'
-                             else SyntheticTrainer(self._config))
+            self._trainer = config.make_trainer()
         except (ValueError, OSError) as error:
             raise StartupError(str(error)) from None
         self._synthetic = config.synthetic
@@ -96,7 +96,8 @@ class FeedbackNode(Node):
                  f'noise {c.feedback_noise:g}')
         if self._kind == 'teacher':
             plain = ' (plain feedback only: it comes late)' if c.delayed else ''
-            return ("teacher: judges each action against the expert's, utterances "
+            task = '' if self._task == DEFAULT_TASK else f' of task {self._task}'
+            return (f"teacher{task}: judges each action against the expert's, utterances "
                     f'{interval}, {human}{plain}')
         return (f'synthetic trainer, reward {c.reward_variant} (alpha {c.alpha_threshold:g}, '
                 f'beta {c.beta_threshold:g}, stationary {c.stationary_steps} steps), '
@@ -174,17 +175,12 @@ class FeedbackNode(Node):
         try:
             status = next(s for s in msg.status if s.name == STATUS_NAME)
             values = parse_status((kv.key, kv.value) for kv in status.values)
-            seen = SeenStep(stamp_ns=stamp_to_ns(msg.header.stamp), x=values['x'],
-                            y=values['y'], has_key=values['has_key'], pose=values['pose'],
-                            skull_x=values['skull_x'], action=values['action'],
-                            episode=values['episode'], agent_step=values['agent_step'])
-        except (StopIteration, KeyError, ValueError) as error:
-            problem = f'not an {STATUS_NAME} status with the keys the teacher needs ({error!r})'
-        else:
-            problem = position_problem(seen.x, seen.y)
-        if problem is not None:
-            self._counts['bad_status'] += 1
-            self.get_logger().error(f'env_status dropped: {problem}')
+            seen = self._trainer.see(stamp_to_ns(msg.header.stamp), values)
+        except StopIteration:
+            self._drop_status(f'no {STATUS_NAME} status in it')
+            return
+        except (KeyError, ValueError, TypeError) as error:
+            self._drop_status(f'not a status the teacher can read ({error!r})')
             return
         self._now_ns = seen.stamp_ns
         if not self._synthetic:
@@ -199,6 +195,10 @@ class FeedbackNode(Node):
                                    judgement.action)
         if out.utterance is not None:
             self._publish_utterance(out.utterance)
+
+    def _drop_status(self, problem: str) -> None:
+        self._counts['bad_status'] += 1
+        self.get_logger().error(f'env_status dropped: {problem}')
 
     def _publish_utterance(self, utterance: Utterance) -> None:
         status = DiagnosticStatus(

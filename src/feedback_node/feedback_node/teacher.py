@@ -12,7 +12,8 @@ nothing. After the key the lesson is over: nothing is judged.
 
 - h = +1: the agent's action does what the expert's would; -1: it does something else.
 - Attribution as the thesis's trainer: the judgement of T is made when T' is seen, stamped T.
-- The human-like knobs (``human_like.HumanLike``) apply: probability, delay, noise.
+  What is judged and when (re-sends, restarts, resets, missed steps, the human-like knobs) is
+  the frame every task's teacher shares (``judging.ActionTeacher``).
 - It speaks the Figure 5.1 sentence of the stage of the route the agent is in (the expert knows
   the stage), every ``utterance_interval`` seconds of simulation time. In the air the stage is
   the one the jump began in.
@@ -20,15 +21,15 @@ nothing. After the key the lesson is over: nothing is judged.
 Pure and deterministic (no rclpy): ``on_step`` takes one step as the env reported it.
 """
 
-from dataclasses import dataclass
-from typing import Dict, List, NamedTuple, Optional
+from typing import Dict, Mapping, NamedTuple, Optional
 
 from attention_common.joy_actions import NUM_ACTIONS
 from attention_tasks.montezuma.critical_positions import critical_position_at
 from attention_tasks.montezuma.expert import FIRE_ACTIONS, Phase, RoomOneExpert
 from feedback_node.action_effects import EffectTable, place_of, Situation
-from feedback_node.human_like import FeedbackScheduler, HumanLike
-from feedback_node.utterances import IntervalSchedule, SENTENCES, Utterance
+from feedback_node.human_input import position_problem
+from feedback_node.judging import ActionTeacher, TeacherConfig
+from feedback_node.utterances import SENTENCES, Utterance
 
 TRAINERS = ('teacher', 'thesis')
 """feedback_node ``trainer``: this teacher, or the thesis's trainer (``trainer.py``)."""
@@ -47,17 +48,6 @@ STAGE_SENTENCE: Dict[Phase, int] = {
 """Which Figure 5.1 sentence (by critical position) names what matters in each stage."""
 
 
-@dataclass
-class TeacherConfig(HumanLike):
-    """Parameters of the teacher; the feedback node's ROS parameters carry the same names."""
-
-    utterance_interval: float = 10.0
-    """Seconds of simulation time between utterances; 0 = every step; negative = no
-    utterances."""
-    seed: int = 0
-    """Seeds the human-like draws (probability, delay, noise)."""
-
-
 class SeenStep(NamedTuple):
     """One step as ``env_status`` reports it: what the teacher sees."""
 
@@ -66,7 +56,7 @@ class SeenStep(NamedTuple):
     y: int
     has_key: bool
     pose: int
-    """The agent's sprite (``env_node.core.RAM_POSE``)."""
+    """The agent's sprite (``attention_tasks.montezuma.env.RAM_POSE``)."""
     skull_x: int
     action: int
     """The action the env applied to reach this step; -1 after a reset."""
@@ -75,87 +65,43 @@ class SeenStep(NamedTuple):
     """``env_status`` ``agent_step`` (-1: unknown); a step missed in between is not judged."""
 
 
-class Judgement(NamedTuple):
-    """The teacher's feedback on the action taken at ``stamp_ns``."""
-
-    stamp_ns: int
-    h: float
-    expert_action: int
-    action: int
-    seen_ns: int
-    """The step at which the action was seen done (the next step)."""
-    flipped: bool = False
-
-
-class TeacherOutput(NamedTuple):
-    feedback: List[Judgement]
-    """Feedback due now, oldest judged step first (more than one only with a delay)."""
-    utterance: Optional[Utterance]
-
-
 class _Decided(NamedTuple):
     """What the teacher thought of step T when it saw it."""
 
-    stamp_ns: int
-    episode: int
-    agent_step: int
     phase: Phase
     situation: Situation
     expert_action: int
 
 
-class Teacher:
+class Teacher(ActionTeacher):
     """Judges each action the agent took against the expert's; speaks the stage's sentence."""
+
+    SILENT = ('cannot_matter', 'after_key')
 
     def __init__(self, config: Optional[TeacherConfig] = None,
                  table: Optional[EffectTable] = None):
-        self.config = config or TeacherConfig()
         self.table = table if table is not None else EffectTable.load()
         self.expert = RoomOneExpert()
-        self.scheduler = FeedbackScheduler(self.config, self.config.seed)
-        self.schedule = IntervalSchedule(self.config.utterance_interval)
-        self._counts = {'steps': 0, 'judged': 0, 'agreed': 0, 'cannot_matter': 0,
-                        'after_key': 0, 'unjudged_resets': 0, 'unjudged_gaps': 0,
-                        'duplicates': 0, 'restarts': 0}
-        self.reset()
-
-    @property
-    def counts(self) -> dict:
-        return dict(self._counts, **self.scheduler.counts)
-
-    @property
-    def pending(self) -> int:
-        return self.scheduler.pending
+        super().__init__(config)
 
     def reset(self) -> None:
         """Forget the trial so far (pending delayed feedback too)."""
+        super().reset()
         self.expert.reset()
-        self.scheduler.clear()
-        self.schedule.reset()
-        self._last: Optional[_Decided] = None
         self._stage: Optional[Phase] = None
 
-    def on_step(self, seen: SeenStep) -> TeacherOutput:
-        """Take step T' as the env reported it; return what to publish now."""
-        last = self._last
-        if last is not None and seen.stamp_ns == last.stamp_ns:
-            self._counts['duplicates'] += 1
-            return TeacherOutput(self.scheduler.release(seen.stamp_ns), None)
-        if last is not None and seen.stamp_ns < last.stamp_ns:
-            self._counts['restarts'] += 1
-            self.reset()
-            last = None
-        self._counts['steps'] += 1
-        new_episode = last is None or seen.episode != last.episode or seen.action < 0
-        if last is not None:
-            if new_episode:
-                self._counts['unjudged_resets'] += 1
-            elif min(seen.agent_step, last.agent_step) >= 0 and (
-                    seen.agent_step != last.agent_step + 1):
-                # A step's status was missed: the action seen is not the one taken at T.
-                self._counts['unjudged_gaps'] += 1
-            else:
-                self._judge(last, seen)
+    def see(self, stamp_ns: int, values: Mapping[str, object]) -> SeenStep:
+        """Read step ``values`` (parsed env_status); KeyError, ValueError when they are bad."""
+        seen = SeenStep(stamp_ns=stamp_ns, x=values['x'], y=values['y'],
+                        has_key=values['has_key'], pose=values['pose'],
+                        skull_x=values['skull_x'], action=values['action'],
+                        episode=values['episode'], agent_step=values['agent_step'])
+        problem = position_problem(seen.x, seen.y)
+        if problem is not None:
+            raise ValueError(problem)
+        return seen
+
+    def _decide(self, seen: SeenStep, new_episode: bool) -> _Decided:
         if new_episode:
             self.expert.reset()
         previous = seen.action if 0 <= seen.action < NUM_ACTIONS else None
@@ -163,25 +109,20 @@ class Teacher:
         phase = self.expert.phase
         situation = Situation(phase.name, place_of(seen.x, seen.y), seen.pose,
                               seen.action in FIRE_ACTIONS)
-        self._last = _Decided(seen.stamp_ns, seen.episode, seen.agent_step, phase, situation,
-                              expert_action)
-        return TeacherOutput(self.scheduler.release(seen.stamp_ns), self._speak(seen, phase))
+        return _Decided(phase, situation, expert_action)
 
-    def _judge(self, last: _Decided, seen: SeenStep) -> None:
-        if last.phase is Phase.DONE:
+    def _judge(self, last: SeenStep, decided: _Decided, seen: SeenStep) -> None:
+        if decided.phase is Phase.DONE:
             self._counts['after_key'] += 1
             return
-        if self.table.cannot_matter(last.situation):
+        if self.table.cannot_matter(decided.situation):
             self._counts['cannot_matter'] += 1
             return
-        self._counts['judged'] += 1
-        same = self.table.equivalent(last.situation, seen.action, last.expert_action)
-        self._counts['agreed'] += int(same)
-        self.scheduler.consider(Judgement(
-            stamp_ns=last.stamp_ns, h=1.0 if same else -1.0, expert_action=last.expert_action,
-            action=seen.action, seen_ns=seen.stamp_ns))
+        same = self.table.equivalent(decided.situation, seen.action, decided.expert_action)
+        self._give(last, seen, decided.expert_action, same)
 
-    def _speak(self, seen: SeenStep, phase: Phase) -> Optional[Utterance]:
+    def _speak(self, seen: SeenStep, decided: _Decided) -> Optional[Utterance]:
+        phase = decided.phase
         if phase in STAGE_SENTENCE:
             self._stage = phase
         if self._stage is None or phase is Phase.DONE or not self.schedule.due(seen.stamp_ns):

@@ -20,8 +20,8 @@ from dataclasses import dataclass, fields
 from typing import List, NamedTuple, Optional
 
 from feedback_node.human_like import FeedbackScheduler
+from feedback_node.judging import TeacherConfig
 from feedback_node.reward import RewardConfig, RewardFunction
-from feedback_node.teacher import TeacherConfig
 from feedback_node.utterances import Utterance, UtteranceGenerator
 
 

@@ -24,6 +24,9 @@ from saliency_node.manifest import load_manifest, Manifest, ManifestError, Objec
 
 def render_route(manifest: Manifest) -> Iterator[np.ndarray]:
     """Yield the RGB frame after reset and after every action of the route."""
+    if manifest.source != 'ale':
+        raise ManifestError(f'the manifest has source {manifest.source!r}, not ale: its '
+                            f'templates are made by {manifest.maker}')
     import ale_py
     import gymnasium as gym
     gym.register_envs(ale_py)
@@ -53,8 +56,8 @@ def color_pixels(patch: np.ndarray, colors) -> np.ndarray:
 
 
 def sprite_box(frame: np.ndarray, colors, area) -> Tuple[int, int, int, int]:
-    """Bounding box ``(x, y, w, h)`` of the pixels of ``colors`` inside ``area``."""
-    x, y, w, h = area
+    """Bounding box ``(x, y, w, h)`` of the pixels of ``colors`` inside ``area`` (None: all)."""
+    x, y, w, h = area or (0, 0, frame.shape[1], frame.shape[0])
     ys, xs = np.nonzero(color_pixels(frame[y:y + h, x:x + w], colors))
     if len(ys) == 0:
         return (0, 0, 0, 0)

@@ -24,9 +24,9 @@ from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from saliency_node.grounding import ascii_text, Grounder
-from saliency_node.manifest import (load_manifest, load_template_images, ManifestError,
-                                    TemplateFileError)
-from saliency_node.matching import build_objects
+from saliency_node.manifest import (frame_shape_for, load_backdrops, load_manifest,
+                                    load_template_images, ManifestError, TemplateFileError)
+from saliency_node.matching import build_objects, method_problem
 from saliency_node.saliency import SaliencyConfig, SaliencyMaker
 from saliency_node.settings import Settings, START_ONLY
 from saliency_node.timeline import Timeline
@@ -58,11 +58,16 @@ class SaliencyNode(Node):
                 description=description, dynamic_typing=True))
         try:
             self.settings = Settings.from_values(self._values())
-            manifest = load_manifest(self.settings.templates_manifest or None)
-            objects = build_objects(manifest, load_template_images(manifest))
+            manifest = load_manifest(self.settings.manifest_path)
+            objects = build_objects(manifest, load_template_images(manifest),
+                                    load_backdrops(manifest))
+            self._frame_shape = frame_shape_for(manifest, self.settings.task_spec.frame_shape)
+            problem = method_problem(objects, self.settings.method)
+            if problem:
+                raise ValueError(f'match_method: {problem}')
         except (TemplateFileError, ManifestError, ValueError) as error:
             raise StartupError(f'saliency_node: {error}') from None
-        self._frame_shape = manifest.frame_shape
+        self._objects = objects
         self._maker = SaliencyMaker(objects, manifest.search_region, manifest.background,
                                     self.settings.method)
         self._grounder = Grounder.from_manifest(manifest)
@@ -83,8 +88,8 @@ class SaliencyNode(Node):
             self.settings.status_period, self._log_status,
             clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.get_logger().info(
-            f'ready: mode {self.config.mode}, {len(objects)} objects '
-            f'({", ".join(o.name for o in objects)}) from {manifest.folder / "manifest.yaml"}')
+            f'ready: mode {self.config.mode}, task {self.settings.task}, {len(objects)} objects '
+            f'({", ".join(o.name for o in objects)}) from {self.settings.manifest_path}')
 
     @property
     def config(self) -> SaliencyConfig:
@@ -111,6 +116,9 @@ class SaliencyNode(Node):
             settings = Settings.from_values(self._values(changes))
         except ValueError as error:
             return SetParametersResult(successful=False, reason=str(error))
+        problem = method_problem(self._objects, settings.method)
+        if problem:
+            return SetParametersResult(successful=False, reason=f'match_method: {problem}')
         old, self.settings = self.settings, settings
         if settings.saliency.mode != old.saliency.mode:
             self.get_logger().info(f'mode {old.saliency.mode} -> {settings.saliency.mode}')

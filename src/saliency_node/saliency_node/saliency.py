@@ -97,7 +97,7 @@ def object_mask(shape: Tuple[int, int], scene: Scene, names: Iterable[str],
                 models: Dict[str, ObjectModel], region) -> np.ndarray:
     """uint8 mask (1 = keep) of the non-background pixels of every match of ``names``."""
     mask = np.zeros(shape, np.uint8)
-    rx, ry = region[0], region[1]
+    rx, ry = region[:2] if region else (0, 0)  # region None: the whole frame
     for name in names:
         model = models[name]
         pixels = scene.sprite_pixels.get(name)
@@ -129,12 +129,13 @@ def hide_sprites(frame: np.ndarray, scene: Scene, name: str, mask: np.ndarray) -
 class SaliencyMaker:
     """Matches frames as they come and renders saliency images for selected objects."""
 
-    def __init__(self, objects: Sequence[ObjectModel], region, background=(0, 0, 0),
+    def __init__(self, objects: Sequence[ObjectModel], region=None, background=(0, 0, 0),
                  method: int = cv2.TM_CCORR_NORMED):
+        """``region``: ``(x, y, width, height)`` searched; None: the whole incoming frame."""
         self.models = {o.name: o for o in objects}
         self.agent = next(o.name for o in objects if o.agent)
-        self.region = tuple(region)
         self.matcher = SceneMatcher(objects, region, background, method)
+        self.region = self.matcher.region
 
     def observe(self, frame: np.ndarray) -> Scene:
         """Match a frame (frames must come in time order)."""

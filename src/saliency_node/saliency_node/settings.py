@@ -7,15 +7,18 @@ Numbers accept an integer or a float (``-p utterance_ttl:=5`` and ``:=5.0`` both
 
 from dataclasses import dataclass, fields
 import functools
+from pathlib import Path
 from typing import Mapping
 
 from attention_common.stamps import MAX_STAMP_JUMP_S, NS_PER_S
 from attention_common.utterance import MAX_UTTERANCE_CHARS
+from attention_tasks.task import DEFAULT_TASK, load_task, Task
 
+from saliency_node.manifest import DEFAULT_MANIFEST
 from saliency_node.matching import method_from_name
 from saliency_node.saliency import SaliencyConfig
 
-START_ONLY = ('templates_manifest', 'status_period')
+START_ONLY = ('task', 'templates_manifest', 'status_period')
 """Read at start only; every other parameter is settable at run time."""
 
 
@@ -52,9 +55,12 @@ class Settings(SaliencyConfig):
     match_method: str = 'TM_CCORR_NORMED'
     """cv2.matchTemplate method: TM_CCORR_NORMED (equation 3.1), TM_CCOEFF_NORMED or
     TM_SQDIFF_NORMED."""
+    task: str = DEFAULT_TASK
+    """The task (attention_tasks.<task>): its frame size, and its template manifest unless
+    templates_manifest names one. Read at start only."""
     templates_manifest: str = ''
-    """Template manifest YAML; empty: the packaged one (Montezuma's Revenge, Room 1). Read at
-    start only."""
+    """Template manifest YAML; empty: the task's (montezuma: the packaged one, Room 1). Read
+    at start only."""
     observation_buffer: int = 64
     """Observations held while waiting for a late stamped utterance."""
     max_utterance_chars: int = MAX_UTTERANCE_CHARS
@@ -78,6 +84,10 @@ class Settings(SaliencyConfig):
             raise ValueError(f'utterance_ttl must be positive, got {self.utterance_ttl}')
         if not isinstance(self.templates_manifest, str):
             raise ValueError('templates_manifest must be a path')
+        if not isinstance(self.task, str):
+            raise ValueError(f'task must be a task name, got {self.task!r}')
+        self.task_spec: Task = load_task(self.task)
+        """The ``Task`` that ``task`` names; UnknownTask (a ValueError) names the installed."""
         self.blur_radius = _number('blur_radius', self.blur_radius, 0, True)
         self.blur_sigma = _number('blur_sigma', self.blur_sigma, 0.0)
         self.fade = _number('fade', self.fade, 0.0)
@@ -97,6 +107,13 @@ class Settings(SaliencyConfig):
     def from_values(cls, values: Mapping) -> 'Settings':
         """Check ``values``: missing names keep their defaults, others (use_sim_time) skipped."""
         return cls(**{f.name: values[f.name] for f in fields(cls) if f.name in values})
+
+    @property
+    def manifest_path(self) -> Path:
+        """Return the manifest to read: templates_manifest, the task's, or the packaged one."""
+        if self.templates_manifest:
+            return Path(self.templates_manifest)
+        return self.task_spec.manifest or DEFAULT_MANIFEST
 
     @functools.cached_property
     def saliency(self) -> SaliencyConfig:

@@ -18,6 +18,7 @@ from typing import Callable, Dict, List, Optional, Tuple
 
 from attention_common.feedback import FEEDBACK_RANGE
 from attention_common.stamps import NS_PER_S, StampGuard
+from attention_tasks.task import load_task
 import numpy as np
 from tamer_node.config import TamerConfig
 from tamer_node.history import StepHistory
@@ -122,6 +123,7 @@ class ActingPath:
         self.counters = counters
         self._log = log
         self._guard = StampGuard(int(round(config.max_stamp_jump_s * NS_PER_S)))
+        self._frame_shape = load_task(config.task).frame_shape
         # input_image 'saliency': observations waiting for their saliency image (stamp ->
         # monotonic arrival time); answered on the observation after saliency_timeout_s.
         self._awaiting: 'collections.OrderedDict[int, float]' = (
@@ -228,7 +230,7 @@ class ActingPath:
 
     def _preprocess(self, kind: str, rgb: np.ndarray) -> torch.Tensor:
         try:
-            return torch.from_numpy(preprocess(rgb))
+            return torch.from_numpy(preprocess(rgb, self._frame_shape))
         except ValueError as error:
             self.counters[f'drop/{kind}'] += 1
             raise BadInput(f'{kind} dropped: {error}') from error

@@ -28,6 +28,7 @@ import time
 from typing import Callable, Optional
 
 from attention_common.run_files import CHECKPOINT_DIR, FEEDBACK_LOG, METRICS_CSV, STEPS_DIR
+from attention_tasks.task import DEFAULT_TASK, load_task
 import cv2
 import numpy as np
 # BadInput is raised by the acting path; node.py imports it from here.
@@ -44,9 +45,19 @@ from tamer_node.model import Encoder, FEATURE_SIZE, HModel, load_encoder
 from tamer_node.persistence import DiskWriter, FeedbackLog, MetricsCsv, StepJournal
 import torch
 
-DEFAULT_ENCODER = Path(__file__).resolve().parent / 'weights' / 'encoder.pt'
-HOW_TO_BUILD_ENCODER = ('build it with `tamer_pretrain` (writes tamer_node/weights/encoder.pt, '
-                        'a few minutes on one core) or set encoder_path')
+WEIGHTS_DIR = Path(__file__).resolve().parent / 'weights'
+DEFAULT_ENCODER = WEIGHTS_DIR / 'encoder.pt'
+"""Room 1's (the default task's) shipped encoder."""
+
+
+def encoder_for_task(task: str) -> Path:
+    """Return the shipped encoder file of ``task`` (its ``encoder_file``)."""
+    return WEIGHTS_DIR / load_task(task).encoder_file
+
+
+def how_to_build_encoder(task: str) -> str:
+    return (f'build it with `tamer_pretrain --task {task}` (writes {encoder_for_task(task)}, '
+            'a few minutes on one core) or set encoder_path')
 
 
 def share_the_cpu(switch_interval_s: float = 0.0005) -> None:
@@ -67,9 +78,9 @@ def default_run_dir() -> Path:
     return Path.home() / '.ros' / 'tamer_node' / 'runs' / time.strftime('%Y%m%d-%H%M%S')
 
 
-def resolve_encoder(path: str) -> Path:
-    """Return the encoder file to load: ``path``, or the shipped one when empty."""
-    return Path(path).expanduser() if path else DEFAULT_ENCODER
+def resolve_encoder(path: str, task: str = DEFAULT_TASK) -> Path:
+    """Return the encoder file to load: ``path``, or the task's shipped one when empty."""
+    return Path(path).expanduser() if path else encoder_for_task(task)
 
 
 class TamerAgent:
@@ -82,15 +93,16 @@ class TamerAgent:
         self.run_dir = Path(run_dir)
         self._log = log or (lambda level, text: None)
         if encoder is None:
-            encoder_file = resolve_encoder(config.encoder_path)
+            encoder_file = resolve_encoder(config.encoder_path, config.task)
             if not encoder_file.exists():
-                raise FileNotFoundError(
-                    f'encoder weights {encoder_file} are missing: {HOW_TO_BUILD_ENCODER}')
+                raise FileNotFoundError(f'encoder weights {encoder_file} are missing: '
+                                        f'{how_to_build_encoder(config.task)}')
             encoder = load_encoder(encoder_file)
         self._check_run_dir()
         torch.manual_seed(config.seed)
+        self.task = load_task(config.task)
         model = HModel(config.head_hidden, freeze_encoder=not config.fine_tune_encoder,
-                       encoder=encoder)
+                       encoder=encoder, num_actions=self.task.num_actions)
         self.learner = Learner(model, config.learning_rate, config.alpha, config.max_grad_norm)
         self.actor = ActingModel(model, config.greedy_margin, config.seed)
         self.slot = SnapshotSlot()

@@ -5,6 +5,7 @@ from typing import Dict
 
 from attention_common.parameters import field_docs as _field_docs
 from attention_common.stamps import MAX_STAMP_JUMP_S
+from attention_tasks.task import DEFAULT_TASK, load_task
 
 CREDIT_MODES = ('step', 'window')
 INPUT_IMAGES = ('observation', 'saliency')
@@ -15,6 +16,9 @@ UPDATE_CLOCKS = ('sim', 'wall')
 class TamerConfig:
     """Deep TAMER with the saliency L2 term (thesis eq. 4.3/4.4); names equal ROS parameters."""
 
+    task: str = DEFAULT_TASK
+    """The task: its frame size, its actions (H has one output each) and its pretrained
+    encoder ('montezuma' or 'doorkey'; see attention_tasks)."""
     alpha: float = 1e-4
     """Weight of the saliency L2 term in loss = MSE + alpha * L2; 0 is vanilla Deep TAMER."""
     credit: str = 'step'
@@ -79,7 +83,8 @@ class TamerConfig:
     seed: int = 0
     """Seeds the head's initial weights and minibatch sampling."""
     encoder_path: str = ''
-    """Pretrained encoder weights ('' = the ones shipped in tamer_node/weights/encoder.pt)."""
+    """Pretrained encoder weights ('' = the task's, shipped in tamer_node/weights/: encoder.pt
+    for Room 1, encoder_doorkey.pt for DoorKey)."""
     run_dir: str = ''
     """Folder for metrics.csv, feedback_log.jsonl, checkpoints/ ('' = a new dated folder)."""
     resume: bool = False
@@ -87,6 +92,7 @@ class TamerConfig:
 
     def validate(self) -> None:
         """Raise ValueError naming the first field with an impossible value."""
+        load_task(self.task)  # UnknownTask (a ValueError) names the installed ones
         if self.credit not in CREDIT_MODES:
             raise ValueError(f'credit must be one of {CREDIT_MODES}, got {self.credit!r}')
         if self.update_clock not in UPDATE_CLOCKS:

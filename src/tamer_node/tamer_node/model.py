@@ -2,7 +2,8 @@
 Networks: the image preprocessing, the convolutional autoencoder and H(s, a).
 
 Preprocessing (shared by frames and saliency images): RGB 210x160 -> luminance -> 105x80 by
-exact 2x2 area averaging, uint8. Halving keeps most of the saliency blur visible to the network
+exact 2x2 area averaging, uint8 (another task's frames, DoorKey's 128x128, are area-averaged to
+the same 105x80, so the networks are the same for every task). Halving keeps most of the saliency blur visible to the network
 (on a Room 1 frame blurred as the saliency node does, the mean absolute pixel difference is 8.0
 grey levels at 105x80 against 11.3 at full size and 6.0 at the usual 84x84 squeeze), keeps the
 agent's few pixels, and makes a frame 8.4 kB, so a buffer of 10,000 steps with saliency images
@@ -34,10 +35,11 @@ STD_FLOOR = 0.1
 walls) are not blown up into noise, and images unlike the pretraining frames stay bounded."""
 
 
-def preprocess(rgb: np.ndarray) -> np.ndarray:
-    """(210, 160, 3) uint8 RGB frame or saliency image -> (105, 80) uint8 luminance."""
-    if rgb.shape != FRAME_SHAPE or rgb.dtype != np.uint8:
-        raise ValueError(f'expected a {FRAME_SHAPE} uint8 RGB image, got {rgb.shape} '
+def preprocess(rgb: np.ndarray, frame_shape=FRAME_SHAPE[:2]) -> np.ndarray:
+    """(rows, columns, 3) uint8 RGB frame or saliency image -> (105, 80) uint8 luminance."""
+    expected = tuple(frame_shape) + (3,)
+    if rgb.shape != expected or rgb.dtype != np.uint8:
+        raise ValueError(f'expected a {expected} uint8 RGB image, got {rgb.shape} '
                          f'{rgb.dtype}')
     gray = cv2.cvtColor(rgb, cv2.COLOR_RGB2GRAY)
     return cv2.resize(gray, (INPUT_SHAPE[1], INPUT_SHAPE[0]), interpolation=cv2.INTER_AREA)
@@ -136,19 +138,20 @@ class ConvAutoencoder(nn.Module):
 
 class HModel(nn.Module):
     """
-    H(s, .): the encoder's standardized features into a small head, one output per ALE action.
+    H(s, .): the encoder's standardized features into a small head, one output per action.
 
-    Head: Linear(1120, hidden) -> LeakyReLU(0.01) -> Linear(hidden, 18). With a frozen encoder
+    Head: Linear(1120, hidden) -> LeakyReLU(0.01) -> Linear(hidden, actions) (ALE's 18 in Room
+    1, MiniGrid's 6 in DoorKey). With a frozen encoder
     the learner trains the head on cached features (``features`` once per image, then
     ``from_features``): the same numbers as ``forward`` on the image, at a fraction of the cost.
     """
 
     def __init__(self, hidden: int = 64, freeze_encoder: bool = True,
-                 encoder: Optional[Encoder] = None):
+                 encoder: Optional[Encoder] = None, num_actions: int = NUM_ACTIONS):
         super().__init__()
         self.encoder = encoder if encoder is not None else Encoder()
         self.head = nn.Sequential(
-            nn.Linear(FEATURE_SIZE, hidden), nn.LeakyReLU(0.01), nn.Linear(hidden, NUM_ACTIONS))
+            nn.Linear(FEATURE_SIZE, hidden), nn.LeakyReLU(0.01), nn.Linear(hidden, num_actions))
         self.freeze_encoder = freeze_encoder
         self.encoder.requires_grad_(not freeze_encoder)
 

@@ -32,7 +32,6 @@ from sensor_msgs.msg import Image, Joy
 from std_msgs.msg import Float32, Header, String
 from tamer_node.agent import BadInput, default_run_dir, share_the_cpu, TamerAgent
 from tamer_node.config import field_docs, TamerConfig
-from tamer_node.model import FRAME_SHAPE
 from tamer_node.persistence import json_number
 
 RUNTIME_PARAMETERS = ('alpha',)
@@ -129,7 +128,7 @@ class TamerNode(Node):
         try:
             if msg.encoding != 'rgb8':
                 raise ImageFormatError(f'encoding {msg.encoding!r}, rgb8 expected')
-            rgb = image_to_numpy(msg, FRAME_SHAPE[:2])  # a wrong size is never copied
+            rgb = image_to_numpy(msg, self.agent.task.frame_shape)  # a wrong size: not copied
             action = handler(stamp_to_ns(msg.header.stamp), rgb)
             self._frame_id = msg.header.frame_id
         except (ImageFormatError, BadInput) as error:
@@ -153,7 +152,7 @@ class TamerNode(Node):
     def _publish_action(self, header: Header, action: int) -> None:
         joy = Joy()
         joy.header = header
-        axes, buttons = action_to_joy(action)
+        axes, buttons = action_to_joy(self.agent.task.joy_action(action))
         joy.axes = [float(a) for a in axes]
         joy.buttons = [int(b) for b in buttons]
         self.action_pub.publish(joy)

@@ -25,6 +25,9 @@ class ConsoleConfig:
     """JPEG quality of the frames sent (1-100)."""
     env_node: str = 'env_node'
     """Name of the env node whose ``paused`` parameter the pause button sets."""
+    task: str = 'montezuma'
+    """The task taught: what utterances can name (its template manifest) and its milestones
+    (Room 1's critical positions, DoorKey's sub-goals)."""
 
     def validate(self) -> None:
         """Raise ValueError naming the first impossible value."""

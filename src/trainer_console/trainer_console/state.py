@@ -46,6 +46,11 @@ class ConsoleState:
     """Utterance -> names of the objects it names (the saliency node's grounding)."""
     position_of: Callable[[float, float], int] = lambda x, y: -1
     """(x, y) -> critical position index, -1 in between."""
+    milestone_of: Optional[Callable[[dict], int]] = None
+    """The task's measure on env_status values (``Task.milestone_of``); when set, it takes the
+    place of ``position_of`` (DoorKey: the last sub-goal done)."""
+    milestones: Sequence[str] = tuple(f'critical position {i}' for i in range(6))
+    """Names of the task's milestones, in order (the page scales its curve by their number)."""
     presses: Deque[Press] = field(default_factory=lambda: collections.deque(
         maxlen=RECENT_PRESSES))
     given: Dict[str, int] = field(default_factory=lambda: {'feedback': 0, 'utterance': 0})
@@ -105,7 +110,9 @@ class ConsoleState:
     def on_status(self, values: dict, now: Optional[float] = None) -> None:
         """Take one env_status (parsed key-values)."""
         position = -1
-        if values.get('room') == 1 and 'x' in values and 'y' in values:
+        if self.milestone_of is not None:
+            position = self.milestone_of(values)
+        elif values.get('room') == 1 and 'x' in values and 'y' in values:
             position = self.position_of(values['x'], values['y'])
         with self._lock:
             self.status = dict(values)
@@ -140,7 +147,8 @@ class ConsoleState:
                 'utterance': self.last_utterance, 'named': list(self.named),
                 'step': self.status.get('agent_step'), 'episode': self.status.get('episode'),
                 'lives': self.status.get('lives'), 'has_key': self.status.get('has_key'),
-                'furthest': self.furthest, 'paused': self.paused,
+                'furthest': self.furthest, 'milestones': list(self.milestones),
+                'paused': self.paused,
                 'listeners': dict(self.listeners),
                 'learner': {key: metrics.get(key) for key in (
                     'feedback/received', 'feedback/logged', 'feedback/count', 'train/loss',

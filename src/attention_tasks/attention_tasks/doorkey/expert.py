@@ -112,8 +112,8 @@ def _key_cell(env) -> Optional[Cell]:
 
 
 def _blockers(env, way: Optional[List[Pose]]) -> List[Cell]:
-    """Return the cells along ``way`` holding objects (the door's key excepted)."""
-    key = _key_cell(env)
+    """Return the cells along ``way`` holding objects (the key too once the door is open)."""
+    key = None if env.door.is_open else _key_cell(env)
     return [c for c in _cells(way)[:-1] if not _free(env, c) and c != key]
 
 
@@ -167,7 +167,7 @@ def next_action(env) -> Optional[int]:
         return _pick_up(env, pose, blockers[0])
     if env.door.is_open:
         return _step(way, FORWARD) if len(way) > 1 else None
-    if held is env.key:
+    if held is env.key or not env.door.is_locked:  # a closed door once unlocked opens as it is
         return _step(way, TOGGLE)
     key_way = _key_way(env, pose)
     if key_way is None:

@@ -9,13 +9,20 @@ which is where language should help (thesis chapters 5 to 7). Chosen over MiniGr
 DoorKey (one colour, no distractors: one route to memorise, as in Room 1) and over
 ObstructedMaze (long, hard for a learner to make any progress with in a study's budget).
 
-Frames: ``render()`` gives ``size * tile_size`` pixels square (16 px tiles: 128 x 128 for size
-8), large enough for template matching. A layout the expert cannot solve (a distractor walling
+Frames: what the agent sees, MiniGrid's egocentric view of 7 x 7 cells (the agent at the bottom
+centre, facing up; walls hide what is behind them), rendered in 16 px tiles: 112 x 112 RGB,
+large enough for template matching (``observe``). The whole level (``render()``, 128 x 128 for
+size 8) is for tools and people. Why the agent's view: from 10,000 frames labelled with the
+expert's action, a head on a frozen encoder predicted the expert on new layouts for 71 % of the
+egocentric frames and 45-49 % of the whole-level ones (always "forward" scores 45 %; an encoder
+trained end to end did no better on the whole level): turning is relative to the agent, and the
+egocentric frame shows it directly. A layout the expert cannot solve (a distractor walling
 off the key or the door) is drawn again.
 """
 
 from dataclasses import dataclass
-from typing import Optional, Tuple
+from types import SimpleNamespace
+from typing import Mapping, Optional, Tuple
 
 from attention_tasks.doorkey.expert import solvable
 from minigrid.core.constants import COLOR_NAMES
@@ -23,8 +30,13 @@ from minigrid.core.grid import Grid
 from minigrid.core.mission import MissionSpace
 from minigrid.core.world_object import Ball, Box, Door, Goal, Key
 from minigrid.minigrid_env import MiniGridEnv
+import numpy as np
 
 DISTRACTOR_KINDS = (Key, Ball, Box)
+TILE_SIZE = 16
+"""Pixels per cell of every rendered frame: large enough for template matching."""
+AGENT_VIEW = 7
+"""Cells per side of the agent's own view (MiniGrid's default): frames of 112 x 112."""
 MAX_LAYOUT_TRIES = 100
 
 
@@ -36,9 +48,7 @@ class DoorKeyConfig:
     """Grid cells per side, outer walls included (8: a 6 x 6 interior)."""
     distractors: int = 4
     """Keys, balls and boxes of the other colours, on both sides of the wall."""
-    tile_size: int = 16
-    """Pixels per cell of the rendered frame."""
-    max_steps: int = 0
+    max_episode_steps: int = 0
     """Steps before the episode is truncated; 0: 10 x size^2 (640 for size 8)."""
 
     def validate(self) -> None:
@@ -48,8 +58,13 @@ class DoorKeyConfig:
         if not 0 <= self.distractors <= 2 * (self.size - 2):
             raise ValueError(f'distractors must be in 0..{2 * (self.size - 2)}, '
                              f'got {self.distractors}')
-        if self.tile_size < 8 or self.max_steps < 0:
-            raise ValueError('tile_size must be >= 8 and max_steps >= 0')
+        if self.max_episode_steps < 0:
+            raise ValueError(f'max_episode_steps must be >= 0, got {self.max_episode_steps}')
+
+    @property
+    def tile_size(self) -> int:
+        """Pixels per cell of a rendered frame (fixed: the templates are cut at this size)."""
+        return TILE_SIZE
 
 
 class DistractorDoorKeyEnv(MiniGridEnv):
@@ -65,8 +80,8 @@ class DistractorDoorKeyEnv(MiniGridEnv):
         super().__init__(
             mission_space=MissionSpace(mission_func=self._mission, ordered_placeholders=[
                 list(COLOR_NAMES)]),
-            grid_size=size, max_steps=self.config.max_steps or 10 * size * size,
-            tile_size=self.config.tile_size, **kwargs)
+            grid_size=size, max_steps=self.config.max_episode_steps or 10 * size * size,
+            tile_size=TILE_SIZE, agent_view_size=AGENT_VIEW, **kwargs)
 
     @staticmethod
     def _mission(color: str) -> str:
@@ -113,13 +128,39 @@ class DoorKeyState:
     door_color: str
     door_open: bool
     at_goal: bool
+    grid: str = ''
+    """The whole grid, MiniGrid's ``Grid.encode()`` (type, colour, state per cell) in hex: the
+    teacher plans on it (``planner_view``)."""
+    layout: int = -1
+    """The seed the episode's layout was drawn from."""
+    heldout: bool = False
+    """The layout comes from the held-out seeds (never trained on)."""
 
     @property
     def has_key(self) -> bool:
         return self.carrying == f'{self.door_color} key'
 
+    def status(self) -> dict:
+        """Return the env_status values of the state (``env_node.status``)."""
+        from attention_tasks.doorkey.language import progress
+        return {'lives': 1, 'has_key': self.has_key, 'room': 0, 'x': self.x, 'y': self.y,
+                'direction': self.direction, 'carrying': self.carrying,
+                'door_color': self.door_color, 'door_open': self.door_open,
+                'at_goal': self.at_goal, 'subgoals': progress(self), 'layout': self.layout,
+                'heldout': self.heldout, 'grid': self.grid}
 
-def state_of(env: DistractorDoorKeyEnv) -> DoorKeyState:
+    def position(self):
+        """Return agent_position's (x, y, z): the agent's cell (z 0: one room)."""
+        return float(self.x), float(self.y), 0.0
+
+
+def observe(env: DistractorDoorKeyEnv) -> np.ndarray:
+    """Return the agent's view: (112, 112, 3) uint8 RGB, the agent at the bottom centre."""
+    return env.get_frame(highlight=False, tile_size=TILE_SIZE, agent_pov=True)
+
+
+def state_of(env: DistractorDoorKeyEnv, layout: int = -1, heldout: bool = False
+             ) -> DoorKeyState:
     """Read the state of ``env`` (after a reset or a step)."""
     x, y = (int(v) for v in env.agent_pos)
     carrying = env.carrying
@@ -127,4 +168,53 @@ def state_of(env: DistractorDoorKeyEnv) -> DoorKeyState:
         x=x, y=y, direction=int(env.agent_dir),
         carrying=f'{carrying.color} {carrying.type}' if carrying is not None else '',
         door_color=env.door.color, door_open=bool(env.door.is_open),
-        at_goal=(x, y) == tuple(env.goal_pos))
+        at_goal=(x, y) == tuple(env.goal_pos), grid=env.grid.encode().tobytes().hex(),
+        layout=layout, heldout=heldout)
+
+
+def state_from_status(values: Mapping[str, object]) -> DoorKeyState:
+    """Return the state env_status ``values`` (parsed) describe; KeyError, ValueError if not."""
+    return DoorKeyState(
+        x=int(values['x']), y=int(values['y']), direction=int(values['direction']),
+        carrying=str(values['carrying']), door_color=str(values['door_color']),
+        door_open=bool(values['door_open']), at_goal=bool(values['at_goal']),
+        grid=str(values['grid']), layout=int(values.get('layout', -1)),
+        heldout=bool(values.get('heldout', False)))
+
+
+def planner_view(state: DoorKeyState) -> SimpleNamespace:
+    """
+    Rebuild what ``expert.next_action`` reads (grid, agent, what it holds, door, key, goal).
+
+    From the state alone, as the teacher in another process sees it: the grid is decoded from
+    ``state.grid``; what the agent carries from ``state.carrying``.
+    """
+    cells = np.frombuffer(bytes.fromhex(state.grid), np.uint8)
+    size = int(round((cells.size // 3) ** 0.5))
+    if size * size * 3 != cells.size or size < 3:
+        raise ValueError(f'grid of {cells.size} values is not size x size x 3')
+    grid, _ = Grid.decode(cells.reshape(size, size, 3).copy())
+    door = key = goal = None
+    for i in range(size):
+        for j in range(size):
+            obj = grid.get(i, j)
+            if obj is None:
+                continue
+            obj.cur_pos = (i, j)
+            if obj.type == 'door':
+                door = obj
+            elif obj.type == 'goal':
+                goal = (i, j)
+            elif obj.type == 'key' and obj.color == state.door_color:
+                key = obj
+    if door is None or goal is None:
+        raise ValueError('the grid has no door or no goal')
+    carrying = None
+    if state.carrying:
+        color, kind = state.carrying.split(' ', 1)
+        carrying = {'key': Key, 'ball': Ball, 'box': Box}[kind](color)
+        if carrying.color == state.door_color and kind == 'key':
+            key = carrying
+    return SimpleNamespace(grid=grid, agent_pos=(state.x, state.y), agent_dir=state.direction,
+                           carrying=carrying, door=door, key=key, goal_pos=goal, width=size,
+                           height=size)

@@ -4,6 +4,7 @@ const token = new URLSearchParams(location.search).get('token');
 const $ = (id) => document.getElementById(id);
 let socket = null;
 let nextId = 1;
+let lastSnapshot = null;
 const urls = {F: null, S: null};
 window.framesShown = {F: 0, S: 0};  // images shown so far, by kind (tests and the benchmark read it)
 
@@ -53,7 +54,8 @@ function showState(s) {
   $('learner_feedback').textContent = `${fmt(l['feedback/received'], 0)}, ${fmt(l['feedback/count'], 0)}`;
   $('learner_training').textContent = `${fmt(l['train/loss'], 4)}, ${fmt(l['train/updates'], 0)}`;
   $('step').textContent = `${s.step ?? '-'}, ${s.episode ?? '-'}, ${s.lives ?? '-'}`;
-  $('furthest').textContent = s.furthest >= 0 ? s.furthest : '-';
+  lastSnapshot = s;
+  $('furthest').textContent = s.furthest >= 0 ? `${s.furthest} (${(s.milestones || [])[s.furthest] || ''})` : '-';
   $('pause').textContent = s.paused ? 'resume' : 'pause';
   $('log').innerHTML = s.last.slice().reverse().map((p) =>
     `<li class="${p.confirmed ? 'good' : 'pending'}">${p.kind} ${escapeHtml(String(p.value))}` +
@@ -78,7 +80,8 @@ function plot(points) {
     points.forEach((p, i) => { const y = canvas.height - 4 - value(p) * (canvas.height - 8); i ? g.lineTo(x(p[0]), y) : g.moveTo(x(p[0]), y); });
     g.stroke();
   };
-  line((p) => (p[2] + 1) / 6, '#4af');          // furthest critical position, -1..5
+  const count = Math.max(1, (lastSnapshot && lastSnapshot.milestones || []).length);
+  line((p) => (p[2] + 1) / count, '#4af');      // furthest milestone (critical position, sub-goal)
   line((p) => p[3] / maxFeedback, '#fa4');      // feedback logged by the learner
 }
 

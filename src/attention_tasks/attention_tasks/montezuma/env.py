@@ -18,6 +18,7 @@ from typing import ClassVar, NamedTuple, Optional
 import ale_py
 from attention_common.joy_actions import NUM_ACTIONS
 from attention_common.stamps import frames_to_ns
+from attention_tasks.task import NO_ACTION, Step  # noqa: F401 (NO_ACTION: for callers)
 import gymnasium as gym
 import numpy as np
 
@@ -34,8 +35,6 @@ STANDING_POSES = frozenset((8, 18, 10, 0, 4, 14))
 """Poses of an agent held by something: the ground (standing, walking), a ladder, the rope."""
 RAM_SKULL_X = 47
 """The rolling skull's x (one pixel per step between 22 and 72 in Room 1)."""
-NO_ACTION = -1
-"""``Step.action`` of a step no agent action led to (a reset, the start after warm-up)."""
 
 FRAME_HEIGHT, FRAME_WIDTH = 210, 160
 
@@ -75,35 +74,14 @@ class RamState(NamedTuple):
     skull_x: int = -1
     """``RAM_SKULL_X``: where the skull is (a person sees it on screen)."""
 
+    def status(self) -> dict:
+        """Return the env_status values of the state (``env_node.status``)."""
+        return {'lives': self.lives, 'has_key': self.has_key, 'room': self.room, 'x': self.x,
+                'y': self.y, 'pose': self.pose, 'skull_x': self.skull_x}
 
-class Step(NamedTuple):
-    """One environment step (or a reset) as the node publishes it."""
-
-    observation: np.ndarray
-    """RGB frame, (210, 160, 3) uint8."""
-    state: RamState
-    reward: float
-    terminated: bool
-    """Game over (or a life lost, with ``end_on_life_loss``)."""
-    truncated: bool
-    """The agent left the start room."""
-    life_lost: bool
-    """A life was lost at this step (also at the final death that ends the game)."""
-    episode: int
-    episode_step: int
-    agent_step: int
-    """Steps the agent has taken in this trial (warm-up not counted)."""
-    sim_time_ns: int
-    """Simulation time: emulator frames since the trial began, at 60 Hz."""
-    episode_return: float = 0.0
-    """Sum of the game rewards of this episode so far, this step's included."""
-    action: int = NO_ACTION
-    """The agent action applied to reach this step (``NO_ACTION`` after a reset)."""
-
-    @property
-    def done(self) -> bool:
-        """Tell whether the episode ended at this step (the caller resets)."""
-        return self.terminated or self.truncated
+    def position(self):
+        """Return agent_position's (x, y, z): RAM coordinates and the room."""
+        return float(self.x), float(self.y), float(self.room)
 
 
 def read_ram_state(ram: np.ndarray) -> RamState:
@@ -122,6 +100,8 @@ class MontezumaEnv:
             raise ValueError(f'frameskip must be >= 1, got {self.config.frameskip}')
         if not 0.0 <= self.config.sticky_actions <= 1.0:
             raise ValueError(f'sticky_actions must be in [0, 1], got {self.config.sticky_actions}')
+        if self.config.warmup_steps < 0:
+            raise ValueError(f'warmup_steps must be >= 0, got {self.config.warmup_steps}')
         self._env = gym.make(self.config.env_id, frameskip=self.config.frameskip,
                              repeat_action_probability=self.config.sticky_actions,
                              full_action_space=True)

@@ -1,0 +1,87 @@
+"""
+The DoorKey study's numbers: per condition and against vanilla (pure; result files in).
+
+Per trial the measures of ``measures.trial_measures``; per condition their means with t
+intervals, the pooled held-out success with its Wilson interval, and Welch's test of each
+condition against vanilla (Hedges' g, Holm's adjustment over the five comparisons of a measure).
+"""
+
+from dataclasses import asdict
+from typing import Dict, List, Mapping, Optional, Sequence
+
+from attention_bringup.minigrid_study.measures import CURVE_BINS, SUBGOALS
+from attention_bringup.study.stats import holm_adjust, mean_ci, welch_t_test, wilson_interval
+
+BASELINE = 'vanilla'
+COMPARED = ('heldout_success', 'heldout_progress', 'solved', 'training_progress')
+"""Per-trial measures tested against vanilla."""
+
+
+def _values(records: Sequence[Mapping], name: str) -> List[float]:
+    return [float(r['doorkey'][name]) for r in records if r['doorkey'].get(name) is not None]
+
+
+def _median(values: Sequence[float]) -> Optional[float]:
+    values = sorted(values)
+    if not values:
+        return None
+    middle = len(values) // 2
+    return values[middle] if len(values) % 2 else (values[middle - 1] + values[middle]) / 2
+
+
+def condition_summary(records: Sequence[Mapping]) -> dict:
+    """Means, intervals and pooled rates of one condition's trials."""
+    summary = {'trials': len(records),
+               'completed': sum(r.get('outcome') == 'completed' for r in records)}
+    for name in ('episodes', 'solved', 'training_success', 'heldout_success',
+                 'heldout_episodes', 'training_progress', 'heldout_progress',
+                 'heldout_key_rate'):
+        summary[name] = asdict(mean_ci(_values(records, name)))
+    solved = sum(r['doorkey']['heldout_solved'] for r in records)
+    episodes = sum(r['doorkey']['heldout_episodes'] for r in records)
+    low, high = wilson_interval(solved, episodes)
+    summary['heldout_success_pooled'] = {'solved': solved, 'episodes': episodes,
+                                         'rate': solved / episodes if episodes else None,
+                                         'low': low, 'high': high}
+    summary['trials_solving_heldout'] = sum(r['doorkey']['heldout_solved'] > 0 for r in records)
+    summary['first_step'] = {}
+    for name in SUBGOALS:
+        steps = [r['doorkey']['first_step'][name] for r in records
+                 if r['doorkey']['first_step'][name] is not None]
+        summary['first_step'][name] = {'trials': len(steps), 'median': _median(steps)}
+    summary['mean_steps_to'] = {
+        name: asdict(mean_ci([r['doorkey']['mean_steps_to'][name] for r in records
+                              if r['doorkey']['mean_steps_to'][name] is not None]))
+        for name in SUBGOALS}
+    curves = [r['doorkey']['success_curve'] for r in records]
+    summary['success_curve'] = [
+        asdict(mean_ci([c[i] for c in curves if c[i] is not None])) for i in range(CURVE_BINS)]
+    summary['updates_per_step'] = asdict(mean_ci(
+        [float(r['updates_per_step']) for r in records if r.get('updates_per_step') is not None]))
+    summary['wall_time_s'] = asdict(mean_ci([float(r['wall_time_s']) for r in records]))
+    return summary
+
+
+def comparisons(by_condition: Mapping[str, Sequence[Mapping]]) -> Dict[str, List[dict]]:
+    """Welch's test of every condition against vanilla, per measure, Holm-adjusted."""
+    if BASELINE not in by_condition:
+        return {}
+    others = [c for c in by_condition if c != BASELINE]
+    tests: Dict[str, List[dict]] = {}
+    for name in COMPARED:
+        baseline = _values(by_condition[BASELINE], name)
+        rows = []
+        for condition in others:
+            result = welch_t_test(_values(by_condition[condition], name), baseline)
+            rows.append({'condition': condition, **asdict(result)})
+        for row, adjusted in zip(rows, holm_adjust([row['p'] for row in rows])):
+            row['p_holm'] = adjusted
+        tests[name] = rows
+    return tests
+
+
+def analyse(by_condition: Mapping[str, Sequence[Mapping]], budget: int) -> dict:
+    """Everything the report shows."""
+    return {'budget': budget,
+            'conditions': {c: condition_summary(r) for c, r in by_condition.items() if r},
+            'comparisons': comparisons({c: r for c, r in by_condition.items() if r})}
