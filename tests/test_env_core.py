@@ -4,9 +4,10 @@ from dataclasses import fields
 
 from attention_common.parameters import field_docs
 from attention_common.stamps import frames_to_ns
+from attention_tasks.montezuma.env import (
+    EnvConfig, FRAME_HEIGHT, FRAME_WIDTH, MontezumaEnv, NO_ACTION, RAM_INVENTORY, RAM_X, RamState,
+    read_ram_state, STANDING_POSES)
 from env_node.config import EnvNodeConfig
-from attention_tasks.montezuma.env import (EnvConfig, FRAME_HEIGHT, FRAME_WIDTH, MontezumaEnv, NO_ACTION,
-                           RAM_INVENTORY, RAM_X, RamState, read_ram_state, STANDING_POSES)
 from env_node.status import Counters, NO_LATENCY, parse_status, STATUS_KEYS, status_values
 import numpy as np
 import pytest

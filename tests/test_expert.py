@@ -7,9 +7,9 @@ positions 0..5, in that order.
 
 from attention_tasks.montezuma.critical_positions import (
     critical_position_at, CRITICAL_POSITIONS, DEFAULT_RADIUS, distance)
+from attention_tasks.montezuma.env import EnvConfig, KEY_BIT, MontezumaEnv, RAM_INVENTORY
 from attention_tasks.montezuma.expert import (
     Phase, RoomOneExpert, SKULL_RAM, skull_x_from_frame, skull_x_from_ram, SkullTracker)
-from attention_tasks.montezuma.env import EnvConfig, KEY_BIT, MontezumaEnv, RAM_INVENTORY
 import numpy as np
 import pytest
 

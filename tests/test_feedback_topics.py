@@ -15,9 +15,9 @@ from attention_common.image_codec import image_to_numpy
 from attention_common.joy_actions import action_to_joy
 from attention_common.stamps import frames_to_ns, NS_PER_S, ns_to_stamp, stamp_to_ns
 from attention_tasks.montezuma.critical_positions import critical_position_at
+from attention_tasks.montezuma.env import RamState
 from attention_tasks.montezuma.expert import RoomOneExpert, skull_x_from_frame
 from diagnostic_msgs.msg import DiagnosticArray
-from attention_tasks.montezuma.env import RamState
 from feedback_node.reward import RewardFunction
 from feedback_node.utterances import UtteranceGenerator
 from geometry_msgs.msg import PointStamped, Vector3Stamped

@@ -261,3 +261,72 @@ def test_bad_options_fail_before_starting_anything(tmp_path, argv, message):
     assert result.returncode == 2
     assert message in result.stderr
     assert not (tmp_path / 'run').exists()
+
+
+@pytest.mark.topics
+def test_doorkey_trains_through_the_real_graph(tmp_path):
+    """attention_train --task doorkey: every node on the new task, the teacher and saliency."""
+    run_dir = tmp_path / 'run'
+    result = subprocess.run(
+        [LAUNCHER, '--task', 'doorkey', '--condition', 'language_every_step', '--steps',
+         str(STEPS), '--seed', '3', '--run-dir', str(run_dir), '--human-like'],
+        capture_output=True, text=True, timeout=240)
+    assert result.returncode == 0, result.stderr[-4000:]
+    summary = _read_json(run_dir / 'summary.json')
+    assert summary['status'] == 'completed' and summary['steps'] == STEPS
+    assert summary['task'] == 'doorkey' and summary['milestones'] == ['key', 'door', 'goal']
+    assert summary['exit_codes'] == dict.fromkeys(NODES, 0)
+    params = yaml.safe_load((run_dir / 'params.yaml').read_text())
+    for node in NODES:
+        assert params[node]['ros__parameters']['task'] == 'doorkey', node
+    assert params['env_node']['ros__parameters']['distractors'] == 4
+    counts = summary['message_counts']
+    # The human-like teacher judged about a third of the steps, late (plain feedback), and
+    # said the next sub-goal every step; the saliency node grounded it in DoorKey's templates.
+    assert 0.1 * STEPS <= summary['learner_log']['feedback'] <= 0.6 * STEPS
+    assert counts['utterance_stamped'] >= 0.8 * STEPS
+    assert counts['saliency'] >= 0.8 * STEPS
+    assert summary['metrics']['act/count'] >= 0.8 * STEPS
+    assert summary['episodes'] >= STEPS // 100  # episodes of at most 100 steps
+    with open(run_dir / 'progress.csv') as progress:
+        rows = list(csv.DictReader(progress))
+    assert {row['heldout'] for row in rows} == {'0'}  # no held-out layouts unless asked
+    assert {row['room'] for row in rows} == {'0'}
+    logged = [json.loads(line) for line in
+              (run_dir / 'feedback_log.jsonl').read_text().splitlines()]
+    said = {entry['text'] for entry in logged if entry['kind'] == 'utterance'}
+    assert any(text.startswith('pick up the ') and text.endswith(' key') for text in said)
+
+
+@pytest.mark.topics
+def test_a_person_teaches_doorkey_over_topics(tmp_path, probe):
+    """--no-synthetic --realtime: what a person sends with ros2 topic pub reaches the log."""
+    from attention_common import qos, topics
+    from std_msgs.msg import Float32, String
+    run_dir = tmp_path / 'run'
+    launcher = subprocess.Popen(
+        [LAUNCHER, '--task', 'doorkey', '--realtime', '--no-synthetic', '--steps', '12',
+         '--run-dir', str(run_dir), '--quiet'],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        feedback = probe.publisher(Float32, topics.FEEDBACK, qos.HUMAN)
+        utterance = probe.publisher(String, topics.UTTERANCE, qos.HUMAN)
+        assert wait_until(lambda: _progress_rows(run_dir) >= 2, 120), 'no steps'
+        assert probe.wait_for_subscribers(feedback, 2, timeout=30)  # tamer and feedback_node
+        assert probe.wait_for_subscribers(utterance, 2, timeout=30)  # tamer and saliency
+        utterance.publish(String(data='pick up the yellow key'))
+        for h in (1.0, -1.0, 1.0):
+            feedback.publish(Float32(data=h))
+        stdout, stderr = launcher.communicate(timeout=120)
+    finally:
+        if launcher.poll() is None:
+            launcher.kill()
+    assert launcher.returncode == 0, stderr[-4000:]
+    params = yaml.safe_load((run_dir / 'params.yaml').read_text())
+    assert params['env_node']['ros__parameters']['rate_hz'] == 1.0  # DoorKey's real time
+    logged = [json.loads(line) for line in
+              (run_dir / 'feedback_log.jsonl').read_text().splitlines()]
+    assert [e['h'] for e in logged if e['kind'] == 'feedback'] == [1.0, -1.0, 1.0]
+    assert [e['text'] for e in logged if e['kind'] == 'utterance'] == ['pick up the yellow key']
+    feedback_log = (run_dir / 'logs' / 'feedback_node.log').read_text()
+    assert "a person said 'pick up the yellow key'" in feedback_log

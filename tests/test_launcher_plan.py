@@ -257,6 +257,8 @@ def test_launch_file_names_the_same_executables_and_files():
     assert constants['CONDITIONS'] == graph.CONDITIONS
     assert constants['GRAPH_FILE'] == graph.GRAPH_FILE
     assert constants['CONDITIONS_DIR'] == graph.CONDITIONS_DIR
+    assert constants['TASKS_DIR'] == graph.TASKS_DIR
+    assert constants['DEFAULT_TASK'] == LaunchOptions().task
     assert constants['TRAINERS'] == TRAINERS
     assert constants['TEACHING_GREEDY_MARGIN'] == TEACHING_GREEDY_MARGIN
     functions = {node.name for node in tree.body if isinstance(node, ast.FunctionDef)}
@@ -266,6 +268,7 @@ def test_launch_file_names_the_same_executables_and_files():
                 'DeclareLaunchArgument' for kw in call.keywords if kw.arg == 'default_value'}
     assert defaults['condition'] == graph.DEFAULT_CONDITION
     assert defaults['trainer'] == LaunchOptions().trainer
+    assert defaults['task'] == LaunchOptions().task
     for condition in graph.CONDITIONS:
         assert graph.condition_file(condition).is_file()
 
@@ -443,3 +446,54 @@ def test_the_summary_counts_what_the_learner_logged(tmp_path):
     assert 'feedback logged by the learner 4 (3 used, 1 invalid, mean h +0.33)' in text
     assert 'utterances 1' in text  # the learner's count, not the launcher's 9
     assert learner_log_counts(tmp_path / 'none.jsonl') is None
+
+
+# -- another task ---------------------------------------------------------------------------
+
+def test_task_doorkey_reaches_every_node_with_its_files_and_rate(tmp_path):
+    from attention_tasks.doorkey.env import REALTIME_HZ
+    plan = _plan(tmp_path, task='doorkey', realtime=True, human_like=True, console=True,
+                 seed=3)
+    for node in graph.NODES:
+        assert plan.effective[node]['task'] == 'doorkey'
+    assert graph.task_file('doorkey') in plan.params_files  # after graph.yaml, before the
+    assert plan.params_files.index(graph.task_file('doorkey')) == 1  # condition
+    assert plan.effective['env_node']['warmup_steps'] == 0  # the task's file, not Room 1's 100
+    assert plan.overrides['env_node']['rate_hz'] == REALTIME_HZ
+    assert (plan.effective['tamer_node']['window_min_s'],
+            plan.effective['tamer_node']['window_max_s']) == (0.2, 2.5)  # 1.5 s late + 1 step
+    console = next(c for c in plan.commands if c.name == 'trainer_console')
+    assert 'task:=doorkey' in console.argv
+    assert 'doorkey-language-seed3' in _plan(tmp_path, task='doorkey', seed=3).run_dir.name
+    assert parse_options(['--task', 'doorkey']).task == 'doorkey'
+
+
+def test_room_one_runs_keep_their_parameter_files_and_names(tmp_path):
+    plan = _plan(tmp_path, seed=3)
+    assert all('task' not in values for values in plan.overrides.values())
+    assert len(plan.params_files) == 3  # graph.yaml, the condition, the launcher's overrides
+    assert plan.run_dir.name.endswith('-language-seed3')
+
+
+def test_the_thesis_trainer_is_refused_for_another_task(tmp_path):
+    with pytest.raises(ValueError, match='task doorkey is taught by the teacher'):
+        _plan(tmp_path, task='doorkey', trainer='thesis')
+    with pytest.raises(SystemExit):
+        parse_options(['--task', 'pong'])
+
+
+def test_the_tracker_counts_another_tasks_milestones_and_solved_episodes():
+    from attention_tasks.task import load_task
+    task = load_task('doorkey')
+    tracker = ProgressTracker(position_of=lambda x, y: -1,
+                              milestone_of=lambda values: task.milestone_of(values, 0.0),
+                              solved_of=task.solved)
+    for step, (subgoals, episode) in enumerate([(0, 0), (1, 0), (2, 0), (3, 0), (0, 1)], 1):
+        tracker.on_status(step * 10**9, {'agent_step': step, 'subgoals': subgoals,
+                                         'at_goal': subgoals == 3, 'episode': episode,
+                                         'heldout': episode == 1, 'room': 0}, 0.0)
+    rows = tracker.take_new_rows()
+    assert [row['position'] for row in rows] == [-1, 0, 1, 2, -1]
+    assert [row['heldout'] for row in rows] == [0, 0, 0, 0, 1]
+    assert tracker.furthest == 2 and tracker.first_step_at == {0: 2, 1: 3, 2: 4}
+    assert tracker.solved_episodes == {(1, 0)}

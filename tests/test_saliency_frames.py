@@ -7,9 +7,9 @@ what the game says independently: the room's fixed layout, the agent's RAM posit
 skull's RAM position and whether the agent holds the key.
 """
 
+from attention_tasks.montezuma.env import EnvConfig, MontezumaEnv
 from attention_tasks.montezuma.expert import RoomOneExpert, SKULL_RAM, skull_x_from_ram
 import cv2
-from attention_tasks.montezuma.env import EnvConfig, MontezumaEnv
 import numpy as np
 import pytest
 from saliency_node.grounding import Grounder

@@ -5,8 +5,8 @@ import shutil
 from attention_common import qos, topics
 from attention_common.image_codec import image_to_numpy, numpy_to_image
 from attention_common.stamps import NS_PER_S, ns_to_stamp, stamp_to_ns
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from attention_tasks.montezuma.env import EnvConfig, MontezumaEnv
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from harness import wait_until
 import numpy as np
 import pytest

@@ -7,8 +7,8 @@ right and one that plays at random is mostly wrong.
 """
 
 from attention_common.joy_actions import ACTION_MEANINGS, NUM_ACTIONS
-from attention_tasks.montezuma.expert import Phase, RoomOneExpert
 from attention_tasks.montezuma.env import EnvConfig, MontezumaEnv
+from attention_tasks.montezuma.expert import Phase, RoomOneExpert
 from feedback_node.action_effects import EffectTable, place_of, Situation
 from feedback_node.human_like import HUMAN_LIKE_SETTING
 from feedback_node.teacher import SeenStep, STAGE_SENTENCE, Teacher, TeacherConfig

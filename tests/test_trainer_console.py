@@ -204,3 +204,16 @@ def test_the_state_is_valid_json_when_the_learner_has_no_loss_yet():
                       'feedback/received': float('inf')})
     text = json.dumps(state.snapshot(), allow_nan=False)  # what the page's JSON.parse reads
     assert json.loads(text)['learner']['train/loss'] is None
+
+
+def test_the_console_shows_another_tasks_milestones():
+    from attention_tasks.task import load_task
+    task = load_task('doorkey')
+    state = ConsoleState(milestone_of=lambda values: task.milestone_of(values, 0.0),
+                         milestones=task.milestones)
+    for subgoals in (0, 1, 2, 1):
+        state.on_status({'agent_step': 1, 'subgoals': subgoals, 'room': 0, 'x': 1, 'y': 1},
+                        now=0.0)
+    snapshot = state.snapshot()
+    assert snapshot['furthest'] == 1 and snapshot['milestones'] == ['key', 'door', 'goal']
+    assert ConsoleState().snapshot()['milestones'][5] == 'critical position 5'  # Room 1's

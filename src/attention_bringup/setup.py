@@ -11,7 +11,7 @@ setup(
     # The YAML files travel with the Python package (the launcher finds them next to its code)
     # and are also installed to share/ for ros2 launch.
     package_data={package_name: ['config/*.yaml', 'config/conditions/*.yaml',
-                               'config/tasks/*.yaml']},
+                                 'config/tasks/*.yaml']},
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),

@@ -19,9 +19,9 @@ import statistics
 import time
 
 from attention_common.image_codec import image_to_numpy, numpy_to_image
+from attention_tasks.montezuma.env import EnvConfig, MontezumaEnv
 from attention_tasks.montezuma.expert import RoomOneExpert, skull_x_from_ram
 import cv2
-from attention_tasks.montezuma.env import EnvConfig, MontezumaEnv
 from saliency_node.grounding import Grounder
 from saliency_node.manifest import load_manifest, load_template_images
 from saliency_node.matching import build_objects, match_scene

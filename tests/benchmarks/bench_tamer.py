@@ -31,8 +31,8 @@ from attention_common import qos, topics
 from attention_common.image_codec import numpy_to_image
 from attention_common.isolation import apply_to_this_process, isolated_environ, reserved_domain
 from attention_common.stamps import ns_to_stamp, stamp_to_ns
-from diagnostic_msgs.msg import DiagnosticArray
 from attention_tasks.montezuma.env import EnvConfig, MontezumaEnv
+from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Vector3Stamped
 import numpy as np
 from saliency_node.saliency import BLUR_RADIUS, gaussian_blur

@@ -42,9 +42,6 @@ def task_file(task: str, config_dir: Path = CONFIG_DIR) -> Path:
 
 def base_params_files(condition: str, config_dir: Path = CONFIG_DIR,
                       task: str = 'montezuma') -> List[Path]:
-    """
-    Return the files every node gets, in order: the graph defaults, the task's (if it has
-    one), then the condition.
-    """
+    """Return the files every node gets: graph defaults, the task's (if any), the condition."""
     tasks = [task_file(task, config_dir)] if task_file(task, config_dir).exists() else []
     return [graph_file(config_dir), *tasks, condition_file(condition, config_dir)]

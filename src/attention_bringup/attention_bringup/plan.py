@@ -37,6 +37,7 @@ clipped to [-1, 1], actions within 0.1 of the best tied, ties broken at random. 
 of 10 graph trials stood 3,000 steps at the left ladder's foot never trying UP, and no
 human-like trial in one process took the key (docs/teaching.md)."""
 
+
 def human_like_window_s(step_s: float) -> tuple:
     """
     Return the credit window of ``--human-like`` for steps of ``step_s`` simulation seconds.
@@ -49,10 +50,10 @@ def human_like_window_s(step_s: float) -> tuple:
 
 
 HUMAN_LIKE_WINDOW_S = human_like_window_s(1.0 / REALTIME_RATE_HZ)
-"""tamer_node ``window_min_s``, ``window_max_s`` with ``--human-like`` in Room 1: the credit
-window of a learner that knows how late its trainer is. The teacher speaks 0.3-1.5 s after it sees the
-step after the one it judges, so 0.37-1.63 s after that step began; Deep TAMER's [0.2, 4] s
-(the default, for a person of unknown delay) spreads each feedback over 57 steps instead of 21
+"""tamer_node ``window_min_s``, ``window_max_s`` with ``--human-like`` in Room 1: the credit window
+of a learner that knows how late its trainer is. The teacher speaks 0.3-1.5 s after it sees the
+step after the one it judges, so 0.37-1.63 s after that step began; Deep TAMER's [0.2, 4] s (the
+default, for a person of unknown delay) spreads each feedback over 57 steps instead of 21
 (measured in one process, seeds 100-103: agreement with the expert 0.24-0.46 with [0.2, 1.6],
 0.11-0.38 with [0.2, 4]; docs/teaching.md)."""
 

@@ -1,13 +1,14 @@
 """
 Networks: the image preprocessing, the convolutional autoencoder and H(s, a).
 
-Preprocessing (shared by frames and saliency images): RGB 210x160 -> luminance -> 105x80 by
-exact 2x2 area averaging, uint8 (another task's frames, DoorKey's 128x128, are area-averaged to
-the same 105x80, so the networks are the same for every task). Halving keeps most of the saliency blur visible to the network
-(on a Room 1 frame blurred as the saliency node does, the mean absolute pixel difference is 8.0
-grey levels at 105x80 against 11.3 at full size and 6.0 at the usual 84x84 squeeze), keeps the
-agent's few pixels, and makes a frame 8.4 kB, so a buffer of 10,000 steps with saliency images
-fits in about 170 MB. Colour is dropped: the study's objects differ in brightness as well.
+Preprocessing (shared by frames and saliency images): RGB 210x160 -> luminance -> 105x80 by exact
+2x2 area averaging, uint8 (another task's frames, DoorKey's 112x112, are area-averaged to the same
+105x80, so the networks are the same for every task). Halving keeps most of the saliency blur
+visible to the network (on a Room 1 frame blurred as the saliency node does, the mean absolute
+pixel difference is 8.0 grey levels at 105x80 against 11.3 at full size and 6.0 at the usual 84x84
+squeeze), keeps the agent's few pixels, and makes a frame 8.4 kB, so a buffer of 10,000 steps with
+saliency images fits in about 170 MB. Colour is dropped: the study's objects differ in brightness
+as well.
 
 The encoder is fully convolutional: its 8x14x10 feature map keeps where things are, which is
 what H needs (the thesis found the agent's position is nearly all that matters).

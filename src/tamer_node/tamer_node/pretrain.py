@@ -1,14 +1,14 @@
 """
 tamer_pretrain: collect a task's frames from the real game and pretrain the autoencoder.
 
-Frames come from the task's world (``--task``; Room 1 by default: ``ALE/MontezumaRevenge-v5``,
-no sticky actions, seeded), played by its expert (Room 1's scripted expert, DoorKey's planner)
-with random detours (``Task.collect_frames``), or by a seeded random walk (``--no-expert``). As in the thesis the autoencoder sees frames only;
-with ``--saliency-fraction`` some frames are added again as saliency-like images (blurred outside a
-few random boxes), which we tried and dropped: reconstructing the blur everywhere costs the small
-code the detail of the agent. Only the encoder's weights are written
-(``tamer_node/weights/`` + the task's ``encoder_file`` by default): same seed and options, same
-frames, same weights (one thread, CPU).
+Frames come from the task's world (``--task``; Room 1 by default: ``ALE/MontezumaRevenge-v5``, no
+sticky actions, seeded), played by its expert (Room 1's scripted expert, DoorKey's planner) with
+random detours (``Task.collect_frames``), or by a seeded random walk (``--no-expert``). As in the
+thesis the autoencoder sees frames only; with ``--saliency-fraction`` some frames are added again
+as saliency-like images (blurred outside a few random boxes), which we tried and dropped:
+reconstructing the blur everywhere costs the small code the detail of the agent. Only the encoder's
+weights are written (``tamer_node/weights/`` + the task's ``encoder_file`` by default): same seed
+and options, same frames, same weights (one thread, CPU).
 
     tamer_pretrain                       # the shipped weights (Room 1)
     tamer_pretrain --task doorkey        # DoorKey's (weights/encoder_doorkey.pt)

@@ -59,6 +59,10 @@ def condition_summary(records: Sequence[Mapping]) -> dict:
     summary['updates_per_step'] = asdict(mean_ci(
         [float(r['updates_per_step']) for r in records if r.get('updates_per_step') is not None]))
     summary['wall_time_s'] = asdict(mean_ci([float(r['wall_time_s']) for r in records]))
+    summary['action_shares'] = {
+        kind: asdict(mean_ci([r['doorkey']['action_shares'][kind] for r in records
+                              if 'action_shares' in r['doorkey']]))
+        for kind in ('turn', 'forward', 'other')}
     return summary
 
 

@@ -22,10 +22,10 @@ from typing import List, Optional, Sequence
 
 from attention_bringup.graph import CONDITIONS
 from attention_bringup.minigrid_study import analysis, report
-from attention_bringup.minigrid_study.measures import read_rows, trial_measures
+from attention_bringup.minigrid_study.measures import chance_levels, read_rows, trial_measures
 from attention_bringup.plan import positive_int
 from attention_bringup.study import runner
-from attention_bringup.study.trials import load_records, read_json, write_json
+from attention_bringup.study.trials import load_records, read_json, trial_path, write_json
 from attention_common.run_files import PROGRESS_FILE, STUDY_LOG
 
 DEFAULT_TRIALS = 10
@@ -61,6 +61,12 @@ def argument_parser() -> argparse.ArgumentParser:
                         help=f'the run folders (large; default {DEFAULT_RUNS})')
     parser.add_argument('--analyze-only', action='store_true',
                         help='run no trials; rewrite the analysis, figures and report')
+    parser.add_argument('--every-step-teacher', action='store_true',
+                        help='the teacher judging every step, at once and always right, instead '
+                             'of its human-like setting (a reference study: use another --out)')
+    parser.add_argument('--reference', default=None, metavar='OUT',
+                        help="another study's --out (e.g. the every-step teacher's) whose "
+                             'analysis the report shows beside this one')
     return parser
 
 
@@ -79,9 +85,9 @@ def write_params(out_dir: Path, steps: int, fraction: float) -> Path:
     return path
 
 
-def launcher_args(params: Path) -> List[str]:
-    return ['--task', 'doorkey', '--trainer', 'teacher', '--human-like',
-            '--params-file', str(params)]
+def launcher_args(params: Path, human_like: bool = True) -> List[str]:
+    human = ['--human-like'] if human_like else []
+    return ['--task', 'doorkey', '--trainer', 'teacher', *human, '--params-file', str(params)]
 
 
 def regenerate_command(options: argparse.Namespace) -> str:
@@ -91,6 +97,10 @@ def regenerate_command(options: argparse.Namespace) -> str:
     words += ['--trials', str(options.trials), '--steps', str(options.steps),
               '--heldout-fraction', f'{options.heldout_fraction:g}', '--parallel',
               str(options.parallel), '--out', options.out, '--report', options.report]
+    if options.every_step_teacher:
+        words.append('--every-step-teacher')
+    if options.reference:
+        words += ['--reference', options.reference]
     return ' '.join(shlex.quote(word) for word in words)
 
 
@@ -100,7 +110,7 @@ def _say(text: str) -> None:
 
 
 def add_measures(record: dict, run_dir: Path) -> dict:
-    """The DoorKey measures of the trial, from its run folder's progress.csv."""
+    """Add the DoorKey measures of the trial, from its run folder's progress.csv."""
     record['doorkey'] = trial_measures(read_rows(run_dir / PROGRESS_FILE), record['budget'])
     return record
 
@@ -109,7 +119,8 @@ def run_study(options: argparse.Namespace, out_dir: Path) -> None:
     params = write_params(out_dir, options.steps, options.heldout_fraction)
     jobs, kept = runner.plan_trials(options.conditions, options.trials, options.steps, out_dir,
                                     Path(options.runs_dir).resolve(),
-                                    launcher_args=launcher_args(params.resolve()))
+                                    launcher_args=launcher_args(params.resolve(),
+                                                                not options.every_step_teacher))
     if kept:
         _say(f'{len(kept)} trial(s) already have results: skipped')
     if not jobs:
@@ -162,15 +173,20 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         if not options.analyze_only:
             run_study(options, out_dir)
         found = load_records(out_dir, options.conditions)
-        for condition_records in found.values():
+        for condition, condition_records in found.items():
             for record in condition_records:  # measured again while the run folder is here
                 run_dir = Path(record.get('run_dir', ''))
-                if (run_dir / PROGRESS_FILE).exists() or 'doorkey' not in record:
+                if (run_dir / PROGRESS_FILE).exists():
                     add_measures(record, run_dir)
-        records = {c: [r for r in found[c] if r['seed'] < options.trials]
-                   for c in options.conditions}
+                    write_json(trial_path(out_dir, condition, record['seed']), record)
+        records = {c: [r for r in found[c] if r['seed'] < options.trials and 'doorkey' in r]
+                   for c in options.conditions}  # (a trial without measures: interrupted)
         result = analysis.analyse(records, options.steps)
+        result['chance'] = chance_levels()
+        result['human_like'] = not options.every_step_teacher
         write_json(out_dir / 'analysis.json', result)
+        if options.reference:
+            result['reference'] = read_json(Path(options.reference) / 'analysis.json')
         figures = report.draw_figures(result, out_dir)
         log = read_json(out_dir / STUDY_LOG) or []
         report.write_report(Path(options.report), result, options, figures,

@@ -25,8 +25,9 @@ def _int(text, default: int = -1) -> int:
 
 
 def read_rows(path: Path) -> List[Dict[str, int]]:
-    """The columns the measures need, as ints ([] without a file)."""
-    columns = ('agent_step', 'episode', 'episode_step', 'position', 'heldout', 'session')
+    """Return the columns the measures need, as ints ([] without a file)."""
+    columns = ('agent_step', 'episode', 'episode_step', 'position', 'heldout', 'session',
+               'action')
     try:
         with open(path, newline='') as handle:
             return [{name: _int(row.get(name)) for name in columns}
@@ -37,9 +38,10 @@ def read_rows(path: Path) -> List[Dict[str, int]]:
 
 def episodes_of(rows: Sequence[Mapping[str, int]]) -> List[dict]:
     """
-    Return one dict per episode, in order: its first and last agent step, length, held-out,
-    solved, and the episode step of each sub-goal (None: not done). The last episode, cut by
-    the budget, has ``ended`` False.
+    Return one dict per episode, in order.
+
+    Each has its first and last agent step, length, held-out, solved, and the episode step of
+    each sub-goal (None: not done). The last episode, cut by the budget, has ``ended`` False.
     """
     episodes: List[dict] = []
     current: Optional[dict] = None
@@ -126,4 +128,92 @@ def trial_measures(rows: Sequence[Mapping[str, int]], budget: int) -> dict:
         'subgoal_episodes': {name: sum(e[f'{name}_at'] is not None for e in ended)
                              for name in SUBGOALS},
         'success_curve': success_curve(episodes, budget),
+        'action_shares': action_shares(rows[-len(rows) // 4:] if rows else []),
     }
+
+
+def action_shares(rows: Sequence[Mapping[str, int]]) -> Dict[str, float]:
+    """Return the share of turns, forward moves and the rest (pick up, drop, toggle)."""
+    actions = [row['action'] for row in rows if row.get('action', -1) >= 0]
+    if not actions:
+        return {'turn': 0.0, 'forward': 0.0, 'other': 0.0}
+    n = len(actions)
+    turns = sum(a in (0, 1) for a in actions)
+    forward = sum(a == 2 for a in actions)
+    return {'turn': turns / n, 'forward': forward / n, 'other': (n - turns - forward) / n}
+
+
+def chance_levels(episodes: int = 200, seed: int = 0, max_episode_steps: int = 100) -> dict:
+    """
+    Return what uniformly random actions achieve on held-out layouts (the study's level).
+
+    The floor every condition is to be compared with: the fraction of episodes solved and the
+    sub-goals done per episode by a policy that learned nothing.
+    """
+    import numpy as np
+    from attention_tasks.doorkey.env import DoorKeyEnv, DoorKeyEnvConfig, NUM_ACTIONS
+    from attention_tasks.doorkey.expert import next_action
+    rng = np.random.default_rng(seed)
+    env = DoorKeyEnv(DoorKeyEnvConfig(seed=seed, heldout_after=1,
+                                      max_episode_steps=max_episode_steps))
+    done = []
+    step = env.reset()
+    step = env.step(int(rng.integers(NUM_ACTIONS)))  # past heldout_after: held-out layouts next
+    while not step.done:
+        step = env.step(int(rng.integers(NUM_ACTIONS)))
+    for _ in range(episodes):
+        step, best = env.reset(), 0
+        while not step.done:
+            step = env.step(int(rng.integers(NUM_ACTIONS)))
+            best = max(best, step.state.status()['subgoals'])
+        done.append(best)
+    expert_actions, expert_solved = [], 0
+    for _ in range(episodes // 4):  # the expert on held-out layouts: the ceiling, its actions
+        step = env.reset()
+        while not step.done:
+            action = next_action(env.world)
+            step = env.step(int(rng.integers(NUM_ACTIONS)) if action is None else action)
+            expert_actions.append({'action': step.action})
+        expert_solved += int(step.state.at_goal)
+    env.close()
+    judged = judged_good_by_kind(seed)
+    return {'episodes': episodes, 'solved': sum(d == 3 for d in done) / episodes,
+            'judged_good': judged,
+            'progress': sum(done) / episodes,
+            'key': sum(d >= 1 for d in done) / episodes,
+            'expert_solved': expert_solved / (episodes // 4),
+            'expert_action_shares': action_shares(expert_actions)}
+
+
+def _kind(action: int) -> str:
+    return {0: 'turn', 1: 'turn', 2: 'forward'}.get(int(action), 'other')
+
+
+def judged_good_by_kind(seed: int = 0, steps: int = 3000) -> Dict[str, float]:
+    """
+    Return how often the teacher judges a random action "as good as the expert's", by kind.
+
+    Under random play (what a learner does before it has learned): turns, forward moves, and
+    the rest (pick up, drop, toggle), each the fraction judged +1 where the expert has a plan.
+    """
+    import numpy as np
+    from attention_tasks.doorkey.env import DoorKeyEnv, DoorKeyEnvConfig, NUM_ACTIONS
+    from attention_tasks.doorkey.teaching import KNOWLEDGE
+    from env_node.status import Counters, parse_status, status_values
+    rng = np.random.default_rng(seed)
+    env = DoorKeyEnv(DoorKeyEnvConfig(seed=seed, max_episode_steps=100))
+    good = {'turn': 0, 'forward': 0, 'other': 0}
+    total = dict(good)
+    step = env.reset()
+    for _ in range(steps):
+        state = KNOWLEDGE.observe(parse_status(status_values(step, Counters(), False)))
+        expert = KNOWLEDGE.expert_action(state)
+        action = int(rng.integers(NUM_ACTIONS))
+        if expert is not None:
+            total[_kind(action)] += 1
+            good[_kind(action)] += int(KNOWLEDGE.as_good(state, action, expert))
+        step = env.step(action)
+        if step.done:
+            step = env.reset()
+    env.close()
+    return {kind: good[kind] / total[kind] if total[kind] else None for kind in good}

@@ -68,7 +68,7 @@ class DoorKeyEnv:
 
     @property
     def world(self) -> DistractorDoorKeyEnv:
-        """The MiniGrid env (for tests and tools)."""
+        """Return the MiniGrid env (for tests and tools)."""
         return self._env
 
     def reset(self) -> Step:

@@ -1,7 +1,9 @@
 """
-DoorKey frames for pretraining the encoder (``tamer_pretrain --task doorkey``): the expert's
-routes with random detours, as Room 1's are collected, on layouts of their own (the pretraining
-seeds are offset by ``PRETRAIN_SEED_OFFSET``; no held-out layout of a trial is among them).
+DoorKey frames for pretraining the encoder (``tamer_pretrain --task doorkey``).
+
+The expert's routes with random detours, as Room 1's are collected, on layouts of their own (the
+pretraining seeds are offset by ``PRETRAIN_SEED_OFFSET``; no held-out layout of a trial is among
+them).
 """
 
 from typing import Tuple

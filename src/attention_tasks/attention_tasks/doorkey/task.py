@@ -4,9 +4,9 @@ from pathlib import Path
 from typing import Mapping
 
 from attention_tasks.doorkey.env import DoorKeyEnv, DoorKeyEnvConfig, REALTIME_HZ
+from attention_tasks.doorkey.frames import collect_frames
 from attention_tasks.doorkey.language import SUBGOALS
 from attention_tasks.doorkey.world import AGENT_VIEW, TILE_SIZE
-from attention_tasks.doorkey.frames import collect_frames
 from attention_tasks.task import Task
 
 JOY_ACTIONS = (4, 3, 2, 5, 13, 1)
@@ -18,7 +18,7 @@ MANIFEST = Path(__file__).resolve().parent / 'templates' / 'manifest.yaml'
 
 
 def milestone_of(values: Mapping[str, object], radius: float = 0.0) -> int:
-    """The sub-goal this step has done last: 0 key in hand, 1 door open, 2 goal; -1 none."""
+    """Return the sub-goal this step has done last: 0 key in hand, 1 door open, 2 goal; -1 none."""
     return int(values.get('subgoals', 0)) - 1
 
 
@@ -30,4 +30,5 @@ TASK = Task(
     name='doorkey', env_id='MiniGrid DistractorDoorKey', frame_shape=(AGENT_VIEW * TILE_SIZE,) * 2,
     joy_actions=JOY_ACTIONS, action_names=ACTION_NAMES, env_config=DoorKeyEnvConfig,
     make_env=DoorKeyEnv, milestones=SUBGOALS, milestone_of=milestone_of, manifest=MANIFEST,
-    realtime_hz=REALTIME_HZ, encoder_file='encoder_doorkey.pt', collect_frames=collect_frames, solved=_solved)
+    realtime_hz=REALTIME_HZ, encoder_file='encoder_doorkey.pt', collect_frames=collect_frames,
+    solved=_solved)

@@ -1,6 +1,8 @@
 """
-Room 1 frames for pretraining the encoder (``tamer_pretrain``): the scripted expert's route with
-random detours, or a seeded random walk, from the real game (no sticky actions, seeded).
+Room 1 frames for pretraining the encoder (``tamer_pretrain``).
+
+The scripted expert's route with random detours, or a seeded random walk, from the real game (no
+sticky actions, seeded).
 """
 
 from typing import Tuple

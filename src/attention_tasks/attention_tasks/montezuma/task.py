@@ -14,7 +14,7 @@ REALTIME_RATE_HZ = 15.0
 
 
 def milestone_of(values: Mapping[str, object], radius: float) -> int:
-    """The critical position within ``radius`` of the agent, in Room 1; -1 elsewhere."""
+    """Return the critical position within ``radius`` of the agent in Room 1; -1 elsewhere."""
     if int(values.get('room', EnvConfig.start_room)) != EnvConfig.start_room:
         return OUTSIDE
     return critical_position_at(values.get('x', 0), values.get('y', 0), radius=radius)
@@ -26,4 +26,5 @@ TASK = Task(
     env_config=EnvConfig, make_env=MontezumaEnv,
     milestones=tuple(f'critical position {i}' for i in range(len(CRITICAL_POSITIONS))),
     milestone_of=milestone_of, manifest=None, realtime_hz=REALTIME_RATE_HZ,
-    encoder_file='encoder.pt', collect_frames=collect_frames, solved=lambda values: bool(values.get('has_key')))
+    encoder_file='encoder.pt', collect_frames=collect_frames,
+    solved=lambda values: bool(values.get('has_key')))

@@ -1,0 +1,102 @@
+"""The DoorKey study's measures and analysis, on progress rows written by hand (pure)."""
+
+import argparse
+import csv
+
+from attention_bringup.minigrid_study import analysis, report
+from attention_bringup.minigrid_study.cli import heldout_after, write_params
+from attention_bringup.minigrid_study.measures import (
+    episodes_of, read_rows, success_curve, trial_measures)
+from attention_bringup.progress import PROGRESS_COLUMNS
+import pytest
+
+
+def rows_of(episodes, heldout_from=None):
+    """Progress rows: each episode a list of positions (sub-goal milestones), one per step."""
+    rows, step = [], 0
+    for episode, positions in enumerate(episodes):
+        for episode_step, position in enumerate(positions):
+            step += 1
+            rows.append({'agent_step': step, 'episode': episode, 'episode_step': episode_step,
+                         'position': position, 'session': 1,
+                         'heldout': int(heldout_from is not None and episode >= heldout_from)})
+    return rows
+
+
+def test_episodes_are_cut_where_the_episode_number_changes_and_the_last_is_open():
+    rows = rows_of([[-1, 0, 0, 1, 2], [-1, -1, 0], [-1, -1]], heldout_from=1)
+    episodes = episodes_of(rows)
+    assert [e['solved'] for e in episodes] == [True, False, False]
+    assert [e['ended'] for e in episodes] == [True, True, False]
+    assert (episodes[0]['key_at'], episodes[0]['door_at'], episodes[0]['goal_at']) == (1, 3, 4)
+    assert [e['heldout'] for e in episodes] == [False, True, True]
+
+
+def test_trial_measures_count_only_ended_episodes_and_split_held_out():
+    rows = rows_of([[-1, 0, 1, 2], [-1, 0], [-1, 0, 1, 2], [-1, -1]], heldout_from=2)
+    measures = trial_measures(rows, budget=len(rows))
+    assert (measures['episodes'], measures['solved']) == (3, 2)
+    assert (measures['training_episodes'], measures['training_solved']) == (2, 1)
+    assert (measures['heldout_episodes'], measures['heldout_solved']) == (1, 1)
+    assert measures['training_success'] == 0.5 and measures['heldout_success'] == 1.0
+    assert measures['training_progress'] == 2.0  # 3 sub-goals and 1
+    assert measures['first_step'] == {'key': 2, 'door': 3, 'goal': 4}
+    assert measures['mean_steps_to']['goal'] == 3.0
+
+
+def test_success_curve_bins_episodes_by_the_step_they_ended():
+    episodes = [{'ended': True, 'solved': s, 'last_step': step}
+                for s, step in [(False, 10), (True, 20), (True, 95), (False, 100)]]
+    assert success_curve(episodes, 100, bins=2) == [0.5, 0.5]
+    assert success_curve([], 100, bins=2) == [None, None]
+
+
+def test_rows_are_read_back_from_a_progress_csv(tmp_path):
+    path = tmp_path / 'progress.csv'
+    with open(path, 'w', newline='') as handle:
+        writer = csv.DictWriter(handle, PROGRESS_COLUMNS)
+        writer.writeheader()
+        for row in rows_of([[-1, 0, 1, 2]], heldout_from=0):
+            writer.writerow({column: row.get(column, '') for column in PROGRESS_COLUMNS})
+    assert read_rows(path)[-1] == {'agent_step': 4, 'episode': 0, 'episode_step': 3,
+                                   'position': 2, 'heldout': 1, 'session': 1, 'action': -1}
+    assert read_rows(tmp_path / 'missing.csv') == []
+
+
+def record(condition, seed, episodes, heldout_from):
+    rows = rows_of(episodes, heldout_from)
+    return {'condition': condition, 'seed': seed, 'outcome': 'completed', 'wall_time_s': 60.0,
+            'updates_per_step': 1.5, 'doorkey': trial_measures(rows, len(rows))}
+
+
+def test_analysis_compares_with_vanilla_and_the_report_says_it(tmp_path):
+    solved, failed = [-1, 0, 1, 2], [-1, -1, -1]
+    by_condition = {
+        'vanilla': [record('vanilla', s, [failed] * 4 + [solved if s == 0 else failed, failed],
+                           3) for s in range(4)],
+        'language': [record('language', s, [failed] * 3 + [solved, solved, failed], 3)
+                     for s in range(4)],
+    }
+    result = analysis.analyse(by_condition, 18)
+    pooled = result['conditions']['language']['heldout_success_pooled']
+    assert (pooled['solved'], pooled['episodes']) == (8, 8)  # the open last episode not counted
+    assert 0.6 < pooled['low'] < pooled['rate'] == 1.0
+    test = result['comparisons']['heldout_success'][0]
+    assert test['condition'] == 'language' and test['difference'] > 0.5
+    assert test['p_holm'] == test['p']  # one comparison: Holm changes nothing
+    options = argparse.Namespace(heldout_fraction=0.25, trials=4, out='out', parallel=2)
+    figures = report.draw_figures(result, tmp_path)
+    assert all(path.exists() for path in figures.values())
+    path = tmp_path / 'results.md'
+    report.write_report(path, result, options, figures, 'the command', [{'wall_time_s': 600,
+                                                                         'parallel': 2}])
+    text = path.read_text()
+    assert 'the command' in text and '| language |' in text and 'significant' in text
+    assert '![success_curves](success_curves.png)' in text
+
+
+def test_the_held_out_part_is_the_end_of_the_budget(tmp_path):
+    assert heldout_after(10000, 0.25) == 7500
+    with pytest.raises(ValueError):
+        heldout_after(10000, 1.0)
+    assert 'heldout_after: 7500' in write_params(tmp_path, 10000, 0.25).read_text()
