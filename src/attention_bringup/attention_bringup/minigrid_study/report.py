@@ -151,7 +151,8 @@ def discussion(result: Mapping) -> List[str]:
             "judges a turn as good as the expert's action "
             f'{_rate(judged.get("turn"))} of the time, a forward move '
             f'{_rate(judged.get("forward"))} and a pick-up, drop or toggle '
-            f'{_rate(judged.get("other"))} (measured by this command on 3,000 random steps). H, which learns the mean judgement of each action, '
+            f'{_rate(judged.get("other"))} (measured by this command on 3,000 random steps). '
+            'H, which learns the mean judgement of each action, '
             'first learns that turning is the least bad thing to do; with two judgements in '
             'three missing, 10 % wrong and each spread over the 2-3 steps of its credit window, '
             'the finer lesson (which turn, when to go forward) does not come through in 10,000 '
