@@ -184,6 +184,9 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         result = analysis.analyse(records, options.steps)
         result['chance'] = chance_levels()
         result['human_like'] = not options.every_step_teacher
+        result['command'] = regenerate_command(options)
+        result['wall_time_s'] = sum(e.get('wall_time_s', 0.0)
+                                    for e in read_json(out_dir / STUDY_LOG) or [])
         write_json(out_dir / 'analysis.json', result)
         if options.reference:
             result['reference'] = read_json(Path(options.reference) / 'analysis.json')
