@@ -292,14 +292,14 @@ def test_first_step_waits_for_the_expected_subscribers(probe, start_node):
 
 
 def test_doorkey_over_the_same_topics(start_node, probe):
-    """task:=doorkey: 128x128 frames, MiniGrid's actions carried by joystick actions."""
+    """task:=doorkey: 112x112 frames (the agent's view), MiniGrid's actions as joystick ones."""
     from attention_tasks.doorkey.env import STEP_S
     from attention_tasks.task import load_task
     task = load_task('doorkey')
     learner = Learner(probe)
     env = start_node('env_node', {'task': 'doorkey', 'seed': 3, 'action_timeout': 30.0})
     observation = learner.connect()
-    assert (observation.height, observation.width) == (128, 128)
+    assert (observation.height, observation.width) == task.frame_shape == (112, 112)
     first_ns = stamp_to_ns(observation.header.stamp)
     status = learner.status_at(first_ns)
     assert status['subgoals'] == 0 and status['heldout'] is False and len(status['grid']) == 384

@@ -295,7 +295,22 @@ def write_report(path: Path, result: Mapping, options, figures: Mapping[str, Pat
                      'training success', 'held-out success (per trial)',
                      'held-out pooled [Wilson]', 'trials solving a held-out layout'], rows)
     lines += ['', 'Means with t-based 95 % intervals over trials. Success: the fraction of '
-              'ended episodes that reached the goal.', '',
+              'ended episodes that reached the goal.', '', '### Progress short of the goal', '']
+    chance = result.get('chance') or {}
+    rows = [[condition, _ci(s['training_progress']), _ci(s['heldout_progress']),
+             _ci(s['heldout_key_rate']), _ci(s['action_shares']['turn']),
+             _ci(s['action_shares']['forward'])] for condition, s in conditions.items()]
+    if chance:
+        rows.append(['*random actions*', '', _num(chance['progress']), _num(chance['key']), '',
+                     ''])
+        shares = chance['expert_action_shares']
+        rows.append(['*the expert*', '', '3.00', '1.00', _num(shares['turn']),
+                     _num(shares['forward'])])
+    lines += _table(['condition', 'sub-goals per training episode',
+                     'sub-goals per held-out episode', 'held-out episodes with the key',
+                     'turns (last quarter)', 'forward moves (last quarter)'], rows)
+    lines += ['', 'Sub-goals per episode: 0-3 (key, door, goal). Random actions and the expert: '
+              'played by this command on held-out layouts of the same level.', '',
               '### Steps to each sub-goal', '']
     rows = []
     for condition, s in conditions.items():
