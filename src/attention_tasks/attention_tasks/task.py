@@ -12,6 +12,7 @@ which joystick action carries each of the task's own actions, so a gamepad, the 
 """
 
 from dataclasses import dataclass
+import functools
 import importlib
 from pathlib import Path
 import pkgutil
@@ -100,7 +101,7 @@ class Task:
         """Return the task action a joystick action carries; None if it carries none."""
         return self._from_joy.get(int(joy_action))
 
-    @property
+    @functools.cached_property
     def _from_joy(self) -> Dict[int, int]:
         return {joy: index for index, joy in enumerate(self.joy_actions)}
 

@@ -19,7 +19,7 @@ def collect_frames(count: int, seed: int = 0, stride: int = 1, detour_probabilit
                    detour_steps: Tuple[int, int] = (1, 6), use_expert: bool = True,
                    progress=None) -> Tuple[np.ndarray, str]:
     """
-    Return ((count, 128, 128, 3) uint8 frames, the policy's name).
+    Return ((count, 112, 112, 3) uint8 frames of the agent's view, the policy's name).
 
     Every ``stride``-th step is kept. With probability ``detour_probability`` per step the agent
     takes a few random actions, then the expert takes over from wherever it is (or a random walk
