@@ -114,8 +114,6 @@ class Launcher:
         from rclpy.signals import SignalHandlerOptions
 
         from attention_bringup.monitor import GraphMonitor, spin_until_shutdown
-        from attention_tasks.montezuma.env import STANDING_POSES
-        from attention_tasks.montezuma.critical_positions import critical_position_at
 
         apply_to_this_process(self.domain_id)
         use_freed_payloads()
@@ -123,12 +121,9 @@ class Launcher:
         rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)
         radius = self.plan.critical_radius  # the feedback node's, so progress agrees with it
         task = load_task(self.plan.options.task)
-        montezuma = task.name == 'montezuma'  # Room 1 measures standing on a position too
-        tracker = ProgressTracker(position_of=functools.partial(critical_position_at,
-                                                                radius=radius),
-                                  milestone_of=None if montezuma else functools.partial(
-                                      task.milestone_of, radius=radius),
-                                  standing_poses=STANDING_POSES if montezuma else frozenset(),
+        tracker = ProgressTracker(milestone_of=functools.partial(task.milestone_of,
+                                                                 radius=radius),
+                                  standing_poses=task.standing_poses,
                                   solved_of=task.solved)
         continuation = self.plan.continuation
         progress_file = self.plan.run_dir / PROGRESS_FILE

@@ -68,8 +68,9 @@ class Counters:
 class ProgressTracker:
     """One row per agent step, furthest critical position, first step at each position."""
 
-    position_of: Callable[[float, float], int]
-    """(x, y) in RAM coordinates -> critical position index, -1 in between."""
+    position_of: Callable[[float, float], int] = lambda x, y: -1
+    """(x, y) in RAM coordinates -> critical position index, -1 in between (used without
+    ``milestone_of``)."""
     milestone_of: Optional[Callable[[Mapping[str, object]], int]] = None
     """The task's measure (``Task.milestone_of``) on a step's env_status values: when set, it
     takes the place of ``position_of`` (DoorKey: the last sub-goal done, 0 key .. 2 goal)."""

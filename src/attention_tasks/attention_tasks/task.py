@@ -85,6 +85,9 @@ class Task:
     frames along the expert's routes with random detours, for pretraining the encoder."""
     solved: Callable[[Mapping[str, object]], bool] = lambda values: False
     """Whether the step's status ends an episode in success (the study counts these)."""
+    standing_poses: frozenset = frozenset()
+    """env_status ``pose`` values of an agent held by something (Room 1: ground, ladder, rope):
+    the launcher counts a milestone as stood on only in one of them; empty: not measured."""
 
     @property
     def num_actions(self) -> int:

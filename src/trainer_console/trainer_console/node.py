@@ -19,7 +19,7 @@ from attention_common.image_codec import image_to_numpy, ImageFormatError
 from attention_common.node_main import run_node, StartupError
 from attention_common.parameters import declare_dataclass
 from attention_common.utterance import MAX_UTTERANCE_CHARS
-from attention_tasks.montezuma.critical_positions import critical_position_at
+from attention_tasks.montezuma.critical_positions import DEFAULT_RADIUS
 from attention_tasks.task import load_task, UnknownTask
 import cv2
 from diagnostic_msgs.msg import DiagnosticArray
@@ -52,10 +52,9 @@ class ConsoleNode(Node):
         except (ValueError, UnknownTask) as error:
             raise StartupError(f'trainer_console: {error}') from None
         grounder = Grounder.from_manifest(load_manifest(task.manifest))
-        room_one = task.name == 'montezuma'  # Room 1's positions count in Room 1 only
         self.state = ConsoleState(
-            ground=lambda text: grounder.ground(text).objects, position_of=critical_position_at,
-            milestone_of=None if room_one else lambda values: task.milestone_of(values, 0.0),
+            ground=lambda text: grounder.ground(text).objects,
+            milestone_of=lambda values: task.milestone_of(values, DEFAULT_RADIUS),
             milestones=task.milestones)
         self.frames = Frames()
         self._encoded_at = {'frame': 0.0, 'saliency': 0.0}

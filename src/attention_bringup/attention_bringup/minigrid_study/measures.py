@@ -57,7 +57,7 @@ def episodes_of(rows: Sequence[Mapping[str, int]]) -> List[dict]:
         for index, name in enumerate(SUBGOALS):
             if row['position'] >= index and current[f'{name}_at'] is None:
                 current[f'{name}_at'] = row['episode_step']
-    for episode, following in zip(episodes, episodes[1:]):
+    for episode in episodes[:-1]:  # a later one began: this one ended
         episode['ended'] = True
     if episodes and episodes[-1]['goal_at'] is not None:
         episodes[-1]['ended'] = True

@@ -13,6 +13,7 @@ from typing import Optional
 
 from attention_common.stamps import NS_PER_S
 from attention_tasks.doorkey.world import DistractorDoorKeyEnv, DoorKeyConfig, observe, state_of
+from attention_tasks.stepping import SteppedWorld
 from attention_tasks.task import Step
 import numpy as np
 
@@ -48,8 +49,10 @@ class DoorKeyEnvConfig(DoorKeyConfig):
                              f'{self.warmup_steps} and {self.heldout_after}')
 
 
-class DoorKeyEnv:
+class DoorKeyEnv(SteppedWorld):
     """The level, stepped by action index 0..5; call ``reset`` or ``warm_up`` once first."""
+
+    num_actions = NUM_ACTIONS
 
     def __init__(self, config: Optional[DoorKeyEnvConfig] = None):
         self.config = config or DoorKeyEnvConfig()
@@ -81,24 +84,6 @@ class DoorKeyEnv:
         self._episode_step, self._return, self._needs_reset = 0, 0.0, False
         self._ticks += 1
         return self._make_step(0.0, False, False)
-
-    def warm_up(self) -> Step:
-        """Take ``warmup_steps`` random actions; return the step the agent starts from."""
-        step = self.reset() if self._episode < 0 else None
-        for _ in range(self.config.warmup_steps):
-            step = self._advance(int(self._rng.integers(NUM_ACTIONS)))
-            if step.done:
-                step = self.reset()
-        return step if step is not None else self.reset()
-
-    def step(self, action: int) -> Step:
-        """Apply one agent action; the caller resets after a step that is ``done``."""
-        if not 0 <= int(action) < NUM_ACTIONS:
-            raise ValueError(f'action {action} is out of range 0..{NUM_ACTIONS - 1}')
-        if self._needs_reset:
-            raise RuntimeError('the episode is over (or never began): call reset() first')
-        self._agent_step += 1
-        return self._advance(int(action))._replace(action=int(action))
 
     def _advance(self, action: int) -> Step:
         _, reward, terminated, truncated, _ = self._env.step(action)

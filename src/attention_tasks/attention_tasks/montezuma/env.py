@@ -18,6 +18,7 @@ from typing import ClassVar, NamedTuple, Optional
 import ale_py
 from attention_common.joy_actions import NUM_ACTIONS
 from attention_common.stamps import frames_to_ns
+from attention_tasks.stepping import SteppedWorld
 from attention_tasks.task import NO_ACTION, Step  # noqa: F401 (NO_ACTION: for callers)
 import gymnasium as gym
 import numpy as np
@@ -91,8 +92,10 @@ def read_ram_state(ram: np.ndarray) -> RamState:
                     pose=int(ram[RAM_POSE]), skull_x=int(ram[RAM_SKULL_X]))
 
 
-class MontezumaEnv:
+class MontezumaEnv(SteppedWorld):
     """The game, stepped by action index; call ``reset`` once, then ``step``."""
+
+    num_actions = NUM_ACTIONS
 
     def __init__(self, config: Optional[EnvConfig] = None):
         self.config = config or EnvConfig()
@@ -137,24 +140,6 @@ class MontezumaEnv:
         state = self.ram_state()
         self._lives = state.lives
         return self._make_step(observation, state, 0.0, False, False, False)
-
-    def warm_up(self) -> Step:
-        """Take ``warmup_steps`` random actions (seeded); return the step the agent starts from."""
-        step = self.reset() if self._episode < 0 else None
-        for _ in range(self.config.warmup_steps):
-            step = self._advance(int(self._rng.integers(NUM_ACTIONS)))
-            if step.done:
-                step = self.reset()
-        return step if step is not None else self.reset()
-
-    def step(self, action: int) -> Step:
-        """Apply one agent action; the caller resets after a step that is ``done``."""
-        if not 0 <= int(action) < NUM_ACTIONS:
-            raise ValueError(f'action {action} is out of range 0..{NUM_ACTIONS - 1}')
-        if self._needs_reset:
-            raise RuntimeError('the episode is over (or never began): call reset() first')
-        self._agent_step += 1
-        return self._advance(int(action))._replace(action=int(action))
 
     def _advance(self, action: int) -> Step:
         observation, reward, terminated, truncated, info = self._env.step(action)

@@ -5,7 +5,7 @@ from typing import Mapping
 from attention_common.joy_actions import ACTION_MEANINGS, NUM_ACTIONS
 from attention_tasks.montezuma.critical_positions import (
     critical_position_at, CRITICAL_POSITIONS, OUTSIDE)
-from attention_tasks.montezuma.env import EnvConfig, MontezumaEnv
+from attention_tasks.montezuma.env import EnvConfig, MontezumaEnv, STANDING_POSES
 from attention_tasks.montezuma.frames import collect_frames
 from attention_tasks.task import Task
 
@@ -27,4 +27,4 @@ TASK = Task(
     milestones=tuple(f'critical position {i}' for i in range(len(CRITICAL_POSITIONS))),
     milestone_of=milestone_of, manifest=None, realtime_hz=REALTIME_RATE_HZ,
     encoder_file='encoder.pt', collect_frames=collect_frames,
-    solved=lambda values: bool(values.get('has_key')))
+    solved=lambda values: bool(values.get('has_key')), standing_poses=STANDING_POSES)
