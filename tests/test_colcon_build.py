@@ -12,6 +12,9 @@ REPO = Path(__file__).resolve().parents[1]
 SRC = REPO / 'src'
 COLCON = Path(sys.executable).parent / 'colcon'
 NODES = ('env_node', 'feedback_node', 'saliency_node', 'tamer_node', 'trainer_console')
+EXECUTABLES = tuple((node, node) for node in NODES) + (
+    ('session_bag', 'session_recorder'), ('session_bag', 'attention_bag'))
+"""(package, executable): what ``ros2 run <package> <executable>`` starts."""
 
 
 def package_names():
@@ -41,9 +44,9 @@ def test_every_node_package_is_in_src():
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize('package', NODES)
-def test_executable_is_installed_where_ros2_run_looks(install_base, package):
-    executable = install_base / package / 'lib' / package / package
+@pytest.mark.parametrize('package, name', EXECUTABLES)
+def test_executable_is_installed_where_ros2_run_looks(install_base, package, name):
+    executable = install_base / package / 'lib' / package / name
     assert executable.is_file(), f'{executable} missing'
     assert os.access(executable, os.X_OK), f'{executable} is not executable'
     assert executable.read_text().startswith('#!')

@@ -232,7 +232,10 @@ def test_realtime_without_the_synthetic_trainer(tmp_path):
     # The console came up with the graph, its URL printed, and it stopped cleanly with it.
     assert summary['console_url'] == f'http://127.0.0.1:{port}/'
     assert f'Trainer console: http://127.0.0.1:{port}/' in result.stderr
-    assert summary['exit_codes'] == dict.fromkeys(NODES + ('trainer_console',), 0)
+    assert summary['exit_codes'] == dict.fromkeys(
+        NODES + ('session_recorder', 'trainer_console'), 0)
+    # A person trains: the session is recorded unasked, from its first step.
+    assert summary['bag']['topics']['/observation'] >= summary['steps']
     # ROS_DOMAIN_ID was set (this test session's): the launcher joined it instead of its own.
     assert summary['domain_id'] == int(os.environ['ROS_DOMAIN_ID'])
     params = yaml.safe_load((run_dir / 'params.yaml').read_text())

@@ -10,7 +10,7 @@ from attention_bringup.gallery import cdr_header_stamp_ns, GalleryCollector
 from attention_bringup.params import (
     dump_params, load_params_file, merge_params, node_params, ParamsFileError, parse_params)
 from attention_bringup.plan import (
-    build_plan, DEFAULT_STEPS, LaunchOptions, parse_options, REALTIME_RATE_HZ,
+    build_plan, Continuation, DEFAULT_STEPS, LaunchOptions, parse_options, REALTIME_RATE_HZ,
     TEACHING_GREEDY_MARGIN)
 from attention_bringup.progress import (
     ALIVE_STEPS, format_bar, parse_value, ProgressTracker, RECENT_ROWS, RECENT_STAMPS)
@@ -497,3 +497,33 @@ def test_the_tracker_counts_another_tasks_milestones_and_solved_episodes():
     assert [row['heldout'] for row in rows] == [0, 0, 0, 0, 1]
     assert tracker.furthest == 2 and tracker.first_step_at == {0: 2, 1: 3, 2: 4}
     assert tracker.solved_episodes == {(1, 0)}
+
+
+@pytest.mark.parametrize('synthetic, record, records', [
+    (True, None, False), (False, None, True), (False, False, False), (True, True, True)])
+def test_a_person_s_session_is_recorded_unless_asked_not_to(tmp_path, synthetic, record,
+                                                            records):
+    plan = _plan(tmp_path, synthetic=synthetic, record=record)
+    recorders = [c for c in plan.commands if c.name == 'session_recorder']
+    assert plan.options.records is records and len(recorders) == int(records)
+    env, feedback = plan.effective['env_node'], plan.effective['feedback_node']
+    # The env and the trainer wait for the recorder as for the learners: no step unrecorded.
+    assert env.get('wait_observation_subscribers', 2) == 2 + records
+    assert env.get('wait_position_subscribers', 1) == 1 + records
+    assert feedback['wait_feedback_subscribers'] == 2 + records
+    if records:
+        argv = recorders[0].argv
+        assert argv[0] == str(BIN / 'session_recorder')
+        assert f'bag_dir:={plan.run_dir / "bag"}' in argv
+        assert f'run_dir:={plan.run_dir}' in argv
+        resumed = build_plan(plan.options, BIN, tmp_path,
+                             now=datetime.datetime(2025, 1, 2, 3, 4, 5),
+                             continuation=Continuation(2, 10))
+        bag = next(c for c in resumed.commands if c.name == 'session_recorder').argv
+        assert f'bag_dir:={plan.run_dir / "bag.session2"}' in bag  # a bag per session
+
+
+def test_record_options_parse():
+    assert parse_options([]).record is None
+    assert parse_options(['--record']).record is True
+    assert parse_options(['--no-synthetic', '--no-record']).records is False

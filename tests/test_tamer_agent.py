@@ -636,3 +636,30 @@ def test_the_disk_thread_outlives_a_failing_error_report(tmp_path):
     assert disk.errors == 1 and 'disk full' in reports[0]
     disk.stop()
     journal.close()
+
+
+def test_feedback_is_learned_on_the_action_taken_not_the_agent_s_answer(agents, tmp_path):
+    # attention_replay: the session's agent took its own action; the feedback judged that one.
+    agent = make_agent(tmp_path / 'taken')  # closed here, then resumed
+    answers = play(agent, 4)
+    taken = {s: (a + 1) % agent.task.num_actions for s, a in answers.items()}
+    agent.on_action_taken(stamp(1), taken[stamp(1)])  # after the answer
+    agent.on_action_taken(stamp(4), 3)  # before its observation: the answer is still greedy
+    answers.update(play(agent, 1, first=4))
+    agent.on_feedback(1.0, 'stamped', stamp(1))
+    agent.on_feedback(-1.0, 'stamped', stamp(4))
+    agent.on_feedback(1.0, 'stamped', stamp(2))  # nothing taken: the agent's own answer
+    assert processed(agent, 3)
+    samples = {s.stamp: s.action for s in agent.buffer.samples()}
+    assert samples == {stamp(1): taken[stamp(1)], stamp(4): 3, stamp(2): answers[stamp(2)]}
+    assert answers[stamp(4)] is not None  # it answered for itself
+    counts = agent.metrics()
+    assert counts['act/taken'] == 2
+    assert counts['act/taken_differs'] == 1 + int(answers[stamp(4)] != 3)
+    with pytest.raises(BadInput):
+        agent.on_action_taken(stamp(3), agent.task.num_actions)
+    assert agent.metrics()['drop/action_taken'] == 1
+    # The journal keeps what was taken, so a resumed learner learns the same.
+    agent.close()
+    resumed = agents(tmp_path / 'taken', resume=True)
+    assert {s.stamp: s.action for s in resumed.buffer.samples()} == samples

@@ -34,6 +34,7 @@ setup(
             'attention_study = attention_bringup.study.cli:main',
             'attention_teaching = attention_bringup.teaching.cli:main',
             'attention_study_minigrid = attention_bringup.minigrid_study.cli:main',
+            'attention_replay = attention_bringup.replay.cli:main',
         ],
     },
 )

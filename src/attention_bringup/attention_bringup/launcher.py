@@ -29,8 +29,8 @@ from attention_bringup.gallery import GalleryCollector
 from attention_bringup.graph import NODES
 from attention_bringup.params import ParamsFileError
 from attention_bringup.plan import (
-    build_plan, chosen_domain, CONSOLE, Continuation, LaunchPlan, parse_options, resumed_options,
-    save_options)
+    bag_dir_name, build_plan, chosen_domain, CONSOLE, Continuation, LaunchPlan, parse_options,
+    RECORDER, resumed_options, save_options)
 from attention_bringup.processes import (
     cpu_seconds, exit_description, log_tail, NodeGroup, resident_memory_kb)
 from attention_bringup.progress import format_bar, ProgressTracker
@@ -41,6 +41,8 @@ from attention_common.run_files import (
     CHECKPOINT_DIR, FEEDBACK_LOG, GALLERY_FILE, LEARNING_CURVE_FILE, LOGS_DIR, METRICS_CSV,
     of_session, OPTIONS_FILE, OVERRIDES_FILE, PARAMS_FILE, PIDS_FILE, PROGRESS_FILE, SUMMARY_FILE)
 from attention_tasks.task import load_task
+from session_bag import info as bag_info
+from session_bag.repair import repair
 
 STARTUP_TIMEOUT_S = 300.0
 """Longest wait for the first step (node start-up includes importing torch on a busy CPU)."""
@@ -163,7 +165,8 @@ class Launcher:
             self._clear_bar()
             if status != 'node_failed':
                 self._say('Stopping the nodes (SIGINT)...')
-            exit_codes = group.stop(STOP_TIMEOUT_S, escalate=lambda: self.interrupts >= 2)
+            exit_codes = group.stop(STOP_TIMEOUT_S, escalate=lambda: self.interrupts >= 2,
+                                    last=(RECORDER,))
             with monitor.lock:
                 writer.write(tracker.take_new_rows())
                 self._label_gallery(tracker, monitor.gallery)
@@ -187,10 +190,20 @@ class Launcher:
         first and env_node starts once they listen.
         """
         env = [c for c in self.plan.commands if c.name == 'env_node']
-        learners = [c for c in self.plan.commands if c.name != 'env_node']
+        recorder = [c for c in self.plan.commands if c.name == RECORDER]
+        learners = [c for c in self.plan.commands if c.name not in ('env_node', RECORDER)]
+        if recorder:  # first: the bag holds the session from its first message
+            self._start(group, recorder)
+            failure = self._wait_for(
+                group, lambda: monitor.node_subscribes(RECORDER, 'observation'),
+                STARTUP_TIMEOUT_S, f'{RECORDER} does not subscribe')
+            if failure:
+                return failure
         if self.plan.options.realtime:
             self._start(group, learners)
-            failure = self._wait_for(group, monitor.learners_listen, STARTUP_TIMEOUT_S,
+            failure = self._wait_for(group,
+                                     lambda: monitor.learners_listen(recorders=len(recorder)),
+                                     STARTUP_TIMEOUT_S,
                                      'feedback_node, saliency_node and tamer_node do not listen')
             if failure:
                 return failure
@@ -373,14 +386,36 @@ class Launcher:
         summary['files']['saliency_gallery'] = report.plot_gallery(
             monitor.gallery.samples, run_dir / GALLERY_FILE, title,
             step_of=self._gallery_steps)
+        summary['bag'] = self._bag(exit_codes)
+        summary['files']['bag'] = summary['bag'] and summary['bag'].get('dir')
         report.write_json(run_dir / SUMMARY_FILE, summary)
         self.out.write(f'Run folder: {run_dir}\n')
         for line in report.summary_lines(summary):
             self.out.write(f'  {line}\n')
+        if summary['bag'] and 'messages' in summary['bag']:
+            self.out.write(f'  {bag_info.summary_line(summary["bag"])}\n')
         self.out.flush()
         if status == 'completed':
             return 0
         return EXIT_INTERRUPTED if status == 'interrupted' else 1
+
+    def _bag(self, exit_codes) -> Optional[dict]:
+        """Return what the session's bag holds; repair it first if its recorder was killed."""
+        if not self.plan.options.records:
+            return None
+        bag_dir = self.plan.run_dir / bag_dir_name(self.plan.continuation.session)
+        try:
+            repaired = None
+            if exit_codes.get(RECORDER) != 0:
+                repaired = repair(bag_dir)
+                self._say(f'attention_train: {RECORDER} did not exit cleanly; the bag was '
+                          f'repaired ({repaired.messages} messages kept)')
+            summary = bag_info.bag_summary(bag_dir)
+        except (OSError, ValueError) as error:
+            return {'dir': str(bag_dir), 'error': str(error)}
+        summary['dir'] = bag_dir.name  # relative to the run folder, like the other files
+        summary['repaired'] = repaired is not None
+        return summary
 
     def _exit_text(self, status, failed, exit_codes, group) -> str:
         if status == 'completed':

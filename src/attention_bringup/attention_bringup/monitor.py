@@ -106,10 +106,16 @@ class GraphMonitor(Node):
                 self.destroy_subscription(subscription)
             self._gallery_subscriptions = ()
 
-    def learners_listen(self) -> bool:
-        """Return whether saliency and tamer take observations and feedback takes positions."""
-        return (self.count_subscribers(topics.OBSERVATION) >= 2
-                and self.count_subscribers(topics.AGENT_POSITION) >= 1)
+    def learners_listen(self, recorders: int = 0) -> bool:
+        """Return whether saliency, tamer, feedback (and the ``recorders``) listen."""
+        return (self.count_subscribers(topics.OBSERVATION) >= 2 + recorders
+                and self.count_subscribers(topics.AGENT_POSITION) >= 1 + recorders)
+
+    def node_subscribes(self, node_name: str, topic: str) -> bool:
+        """Return whether the node ``node_name`` subscribes to ``topic`` (in the graph)."""
+        name = self.resolve_topic_name(topic)
+        return any(info.node_name == node_name
+                   for info in self.get_subscriptions_info_by_topic(name))
 
     def hears_env(self) -> bool:
         """Return whether env_node's ``env_status`` is matched (so no step goes unseen)."""

@@ -30,6 +30,10 @@ DEFAULT_STEPS = 10000
 
 CONSOLE = 'trainer_console'
 CONSOLE_PORT = 8080
+RECORDER = 'session_recorder'
+"""The bag recorder's executable and node name (package session_bag)."""
+BAG_DIR = 'bag'
+"""The session's rosbag2 bag in the run folder (a resumed session's: bag.session2, ...)."""
 
 TEACHING_GREEDY_MARGIN = 0.1
 """tamer_node ``greedy_margin`` with ``--trainer teacher`` (not with ``--thesis-learner``): H
@@ -95,6 +99,13 @@ class LaunchOptions:
     """Start the trainer console too (a fifth process) and print its URL."""
     console_port: int = CONSOLE_PORT
     """The console's port on 127.0.0.1."""
+    record: Optional[bool] = None
+    """Record the session as a rosbag2 bag (``bag/``); None: when a person trains."""
+
+    @property
+    def records(self) -> bool:
+        """Whether the run records a bag: ``--record``/``--no-record``, else a person trains."""
+        return (not self.synthetic) if self.record is None else bool(self.record)
 
 
 def positive_int(text: str) -> int:
@@ -181,6 +192,13 @@ def argument_parser() -> argparse.ArgumentParser:
                              'its URL: a person judges with the keyboard and types utterances')
     parser.add_argument('--console-port', dest='console_port', type=int, default=CONSOLE_PORT,
                         help=f'port of the console (default {CONSOLE_PORT}; 0: any free one)')
+    parser.add_argument('--record', dest='record', action='store_true', default=None,
+                        help='record the session as a rosbag2 bag with MCAP storage in the run '
+                             "folder's bag/ (every topic, for ros2 bag, Foxglove and "
+                             'attention_replay; the default when a person trains, with '
+                             '--no-synthetic)')
+    parser.add_argument('--no-record', dest='record', action='store_false',
+                        help='record no bag, even when a person trains')
     parser.add_argument('--resume', metavar='RUN_DIR', default=None,
                         help='continue a run whose nodes were killed (or that was stopped), with '
                              'the options it was started with, up to its budget: the learner '
@@ -289,7 +307,19 @@ def launcher_overrides(options: LaunchOptions, seed: int, run_dir: Path,
     if not options.synthetic:
         overrides['feedback_node']['synthetic'] = False
         overrides['tamer_node']['credit'] = 'window'  # a person's feedback comes late
+    if options.records:  # the env and the trainer wait for the recorder too: no step unheard
+        env = node_params(files_params, 'env_node')
+        overrides['env_node']['wait_observation_subscribers'] = (
+            int(env.get('wait_observation_subscribers', 2)) + 1)
+        overrides['env_node']['wait_position_subscribers'] = (
+            int(env.get('wait_position_subscribers', 1)) + 1)
+        overrides['feedback_node']['wait_feedback_subscribers'] += 1
     return {node: values for node, values in overrides.items() if values}
+
+
+def bag_dir_name(session: int = 1) -> str:
+    """Return the bag folder of a session of a run: 'bag', then 'bag.session2', ..."""
+    return BAG_DIR if session == 1 else f'{BAG_DIR}.session{session}'
 
 
 def default_run_dir(cwd: Path, condition: str, seed: int, now: datetime.datetime,
@@ -335,6 +365,12 @@ def build_plan(options: LaunchOptions, bin_dir: Path, cwd: Path,
         for path in all_files:
             argv += ['--params-file', str(path)]
         commands.append(NodeCommand(node, argv, run_dir / node_log(node, continuation.session)))
+    if options.records:  # not a node of the study's graph: its own parameters only
+        argv = [str(bin_dir / RECORDER), '--ros-args', '-p',
+                f'bag_dir:={run_dir / bag_dir_name(continuation.session)}', '-p',
+                f'run_dir:={run_dir}']
+        commands.append(NodeCommand(RECORDER, argv,
+                                    run_dir / node_log(RECORDER, continuation.session)))
     if options.console:  # not a node of the study's graph: its own parameters only
         argv = [str(bin_dir / CONSOLE), '--ros-args', '-p', f'port:={int(options.console_port)}',
                 '-p', f'task:={options.task}']

@@ -15,7 +15,7 @@ import signal
 import subprocess
 import sys
 import time
-from typing import Dict, List, Mapping, Optional
+from typing import Dict, List, Mapping, Optional, Sequence
 
 from attention_bringup.plan import NodeCommand
 
@@ -149,17 +149,22 @@ class NodeGroup:
         return not self.running()
 
     def stop(self, sigint_timeout: float = 30.0, sigterm_timeout: float = 5.0,
-             escalate=lambda: False) -> Dict[str, Optional[int]]:
+             escalate=lambda: False, last: Sequence[str] = ()) -> Dict[str, Optional[int]]:
         """
         SIGINT every node, then SIGTERM and SIGKILL the ones still running after a deadline.
 
-        ``escalate()`` returning True (a second Ctrl-C) cuts the SIGINT wait short.
+        The nodes named in ``last`` (the recorder) get their SIGINT once the others have
+        exited, so they hear everything the others still say. ``escalate()`` returning True (a
+        second Ctrl-C) cuts the SIGINT wait short.
         """
-        for node in self.running():
-            node.signal(signal.SIGINT)
         end = time.monotonic() + sigint_timeout
-        while self.running() and time.monotonic() < end and not escalate():
-            time.sleep(0.05)
+        for group in ([n for n in self.running() if n.name not in last],
+                      [n for n in self.running() if n.name in last]):
+            for node in group:
+                node.signal(signal.SIGINT)
+            while (any(n.poll() is None for n in group) and time.monotonic() < end
+                   and not escalate()):
+                time.sleep(0.05)
         for sig, timeout in ((signal.SIGTERM, sigterm_timeout), (signal.SIGKILL, 5.0)):
             if not self.running():
                 break

@@ -8,6 +8,9 @@ Only ``/clock`` is absolute: ROS 2 time sources listen there.
 OBSERVATION = 'observation'          # sensor_msgs/Image rgb8 210x160, env -> saliency, tamer
 AGENT_POSITION = 'agent_position'    # geometry_msgs/PointStamped x, y, z=room, env -> feedback
 ACTION = 'action'                    # sensor_msgs/Joy stamped with the observation it answers
+# sensor_msgs/Joy: the action the world executed on a step, when the learner did not choose it
+# (attention_replay: the recorded session's); the tamer learns the feedback on that action
+ACTION_TAKEN = 'action_taken'
 ENV_STATUS = 'env_status'            # diagnostic_msgs/DiagnosticArray, one per step
 CLOCK = '/clock'                     # rosgraph_msgs/Clock, simulation time, env -> all
 

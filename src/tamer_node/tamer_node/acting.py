@@ -23,7 +23,8 @@ import numpy as np
 from tamer_node.config import TamerConfig
 from tamer_node.history import StepHistory
 from tamer_node.model import HModel, preprocess, to_input
-from tamer_node.persistence import KIND_ACTION, KIND_OBSERVATION, KIND_SALIENCY, StepJournal
+from tamer_node.persistence import (
+    KIND_ACTION, KIND_OBSERVATION, KIND_SALIENCY, KIND_TAKEN, StepJournal)
 import torch
 
 
@@ -123,7 +124,9 @@ class ActingPath:
         self.counters = counters
         self._log = log
         self._guard = StampGuard(int(round(config.max_stamp_jump_s * NS_PER_S)))
-        self._frame_shape = load_task(config.task).frame_shape
+        task = load_task(config.task)
+        self._frame_shape = task.frame_shape
+        self._num_actions = task.num_actions
         # input_image 'saliency': observations waiting for their saliency image (stamp ->
         # monotonic arrival time); answered on the observation after saliency_timeout_s.
         self._awaiting: 'collections.OrderedDict[int, float]' = (
@@ -198,6 +201,24 @@ class ActingPath:
             return None  # its observation was dropped: the env will re-send the step
         return self._act(record, started)
 
+    def on_action_taken(self, stamp: int, action: int) -> None:
+        """
+        Record the action the world executed on step ``stamp`` (not chosen by this agent).
+
+        Feedback on that step is then learned on this action: attention_replay tells a fresh
+        learner what the agent of the recorded session did. Counted in ``act/taken`` and, when
+        this agent had answered otherwise, ``act/taken_differs``.
+        """
+        if not 0 <= int(action) < self._num_actions:
+            self.counters['drop/action_taken'] += 1
+            raise BadInput(f'action_taken dropped: action {action} is not one of the '
+                           f'{self._num_actions} actions of the task')
+        answer = self.history.set_taken(stamp, action)
+        self.journal.append(KIND_TAKEN, stamp, int(action))
+        self.counters['act/taken'] += 1
+        if answer is not None and answer != int(action):
+            self.counters['act/taken_differs'] += 1
+
     def act_overdue(self, now: Optional[float] = None) -> List[Tuple[int, int]]:
         """
         Answer the observations whose saliency image is ``saliency_timeout_s`` (wall) late.
@@ -255,6 +276,8 @@ class ActingPath:
             action = self.actor.greedy(image)
         self.history.set_action(record.stamp, action)
         self.journal.append(KIND_ACTION, record.stamp, action)
+        if record.taken is not None and record.taken != action:  # told before it answered
+            self.counters['act/taken_differs'] += 1
         if started is not None:
             self.act_seconds.append(time.perf_counter() - started)
         self.counters['act/count'] += 1

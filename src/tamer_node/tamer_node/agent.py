@@ -131,6 +131,7 @@ class TamerAgent:
         # What the node and the benchmarks call: acting.py and intake.py say what each does.
         self.on_observation = self.acting.on_observation
         self.on_saliency = self.acting.on_saliency
+        self.on_action_taken = self.acting.on_action_taken
         self.act_overdue = self.acting.act_overdue
         self.on_feedback = self.intake.on_feedback
         self.on_utterance = self.intake.on_utterance

@@ -23,7 +23,8 @@ from tamer_node.history import other_kind, StepHistory
 from tamer_node.learner import Learner
 from tamer_node.pairing import stored_item
 from tamer_node.persistence import (
-    DiskWriter, FeedbackLog, KIND_NAMES, load_checkpoint, save_checkpoint, StepJournal)
+    DiskWriter, FeedbackLog, KIND_NAMES, KIND_TAKEN, load_checkpoint, save_checkpoint,
+    StepJournal)
 import torch
 
 CHECKPOINT_FORMAT = 'tamer_node.checkpoint/3'  # /3: steps known by (session, stamp)
@@ -188,6 +189,8 @@ def journal_histories(records: Iterable) -> Dict[int, StepHistory]:
             steps = sessions[session] = StepHistory(capacity=1 << 30, session=session)
         if image is not None and kind in KIND_NAMES:
             steps.put_image(KIND_NAMES[kind], stamp, image)
+        elif kind == KIND_TAKEN:
+            steps.set_taken(stamp, action)
         elif action >= 0:
             steps.set_action(stamp, action)
     return sessions

@@ -29,6 +29,9 @@ class StepRecord:
     """Preprocessed (105, 80) uint8 saliency image, if one came."""
     action: Optional[int] = None
     """The action the agent answered this step with."""
+    taken: Optional[int] = None
+    """The action the world executed on this step when the agent's answer was not it
+    (``action_taken``: a replayed session's action); learned from instead of ``action``."""
     observation_features: Optional[torch.Tensor] = None
     """(1120,) float32 frozen-encoder features of the observation, once computed."""
     saliency_features: Optional[torch.Tensor] = None
@@ -39,6 +42,11 @@ class StepRecord:
 
     def features(self, kind: str) -> Optional[torch.Tensor]:
         return getattr(self, f'{kind}_features')
+
+    @property
+    def learned_action(self) -> Optional[int]:
+        """Return the action feedback on this step is about: the one taken, else the agent's."""
+        return self.action if self.taken is None else self.taken
 
 
 def other_kind(kind: str) -> str:
@@ -82,6 +90,13 @@ class StepHistory:
         with self._lock:
             self._record(stamp).action = int(action)
 
+    def set_taken(self, stamp: int, action: int) -> Optional[int]:
+        """Record the action the world executed on ``stamp``; return the agent's answer."""
+        with self._lock:
+            record = self._record(stamp)
+            record.taken = int(action)
+            return record.action
+
     def get(self, stamp: int) -> Optional[StepRecord]:
         """Return a copy of the record (images are shared, never modified), or None."""
         with self._lock:
@@ -104,7 +119,7 @@ class StepHistory:
     def acted_spans(self, now: int) -> List[Span]:
         """Return the time spans of the steps that were answered with an action."""
         with self._lock:
-            stamps = [s for s, r in self._records.items() if r.action is not None]
+            stamps = [s for s, r in self._records.items() if r.learned_action is not None]
         return spans_from_stamps(stamps, now)
 
     def oldest(self) -> Optional[int]:

@@ -1,7 +1,8 @@
 """
 tamer_node: Deep TAMER with the saliency L2 term over ROS topics (a thin shell on TamerAgent).
 
-Subscribes ``observation``, ``saliency``, ``feedback``, ``feedback_stamped``, ``utterance``;
+Subscribes ``observation``, ``saliency``, ``feedback``, ``feedback_stamped``, ``utterance`` and
+``action_taken`` (the action executed on a step when it was not the agent's: attention_replay);
 publishes ``action`` (sensor_msgs/Joy with the answered image's header), ``metrics``, and
 ``feedback_logged``: one receipt per feedback or utterance line written to the log.
 Every TamerConfig field is a parameter of the same name; ``alpha`` may be changed at run time.
@@ -19,7 +20,7 @@ import math
 from attention_common import qos, topics
 from attention_common.executors import with_message_info
 from attention_common.image_codec import image_to_numpy, ImageFormatError
-from attention_common.joy_actions import action_to_joy
+from attention_common.joy_actions import action_to_joy, joy_to_action, JoyActionError
 from attention_common.node_main import run_node, StartupError
 from attention_common.parameters import declare_parameters
 from attention_common.stamps import ns_to_stamp, stamp_to_ns
@@ -65,6 +66,7 @@ class TamerNode(Node):
         self.agent.on_logged = self._publish_receipt
         self.create_subscription(Image, topics.OBSERVATION, self._on_observation, qos.FRAMES)
         self.create_subscription(Image, topics.SALIENCY, self._on_saliency, qos.FRAMES)
+        self.create_subscription(Joy, topics.ACTION_TAKEN, self._on_action_taken, qos.ACTIONS)
         self.create_subscription(Vector3Stamped, topics.FEEDBACK_STAMPED,
                                  with_message_info(self._on_feedback_stamped), qos.HUMAN)
         self.create_subscription(Float32, topics.FEEDBACK, with_message_info(self._on_feedback),
@@ -143,6 +145,20 @@ class TamerNode(Node):
             return
         if action is not None:
             self._publish_action(msg.header, action)
+
+    def _on_action_taken(self, msg: Joy) -> None:
+        try:
+            action = self.agent.task.action_of_joy(joy_to_action(msg.axes, msg.buttons))
+            if action is None:
+                self.agent.counters['drop/action_taken'] += 1
+                raise BadInput('action_taken dropped: a joystick action this task does not use')
+            self.agent.on_action_taken(stamp_to_ns(msg.header.stamp), action)
+        except JoyActionError as error:
+            self.agent.counters['drop/action_taken'] += 1
+            self.get_logger().warning(f'action_taken dropped: {error}',
+                                      throttle_duration_sec=LOG_THROTTLE_S)
+        except BadInput as error:
+            self.get_logger().warning(str(error), throttle_duration_sec=LOG_THROTTLE_S)
 
     def _answer_overdue(self) -> None:
         for stamp, action in self.agent.act_overdue():

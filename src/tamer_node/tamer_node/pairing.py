@@ -41,7 +41,7 @@ def credit(event: FeedbackEvent, history: StepHistory, config: TamerConfig) -> D
         return window_credit(history.acted_spans(event.now), event.now,
                              config.window_min_s, config.window_max_s)
     record = history.get(event.stamp) if event.stamp is not None else None
-    known = [event.stamp] if record is not None and record.action is not None else []
+    known = [event.stamp] if record is not None and record.learned_action is not None else []
     return step_credit(event.stamp, known)
 
 
@@ -94,7 +94,7 @@ def pair(event: FeedbackEvent, history: StepHistory, config: TamerConfig, model:
             companion = stored_item(record, other_kind(kind), history, model)
             counts['pairing/with_saliency' if companion is not None
                    else 'pairing/without_saliency'] += 1
-            samples.append(Sample(state, companion, record.action, float(event.h),
+            samples.append(Sample(state, companion, record.learned_action, float(event.h),
                                   float(weight), stamp, event.seq, history.session))
         if samples:
             counts['feedback/count'] += 1

@@ -38,6 +38,8 @@ import numpy as np
 import torch
 
 KIND_OBSERVATION, KIND_SALIENCY, KIND_ACTION = 1, 2, 3
+KIND_TAKEN = 4
+"""The action the world executed on a step (``action_taken``), when it was not the agent's."""
 KIND_NAMES = {KIND_OBSERVATION: 'observation', KIND_SALIENCY: 'saliency'}
 _MAGIC = b'TMJ3'  # /3: each record names its session
 # magic, kind, session, stamp ns, action, rows, columns, payload bytes (the pixels, zlib level

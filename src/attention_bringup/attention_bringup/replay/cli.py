@@ -1,0 +1,285 @@
+"""
+``attention_replay BAG``: a recorded session replayed into a fresh saliency_node and tamer_node.
+
+Offline TAMER from a person's session: the new learner sees the session's observations and
+hears its feedback and utterances in recorded order (and timing, unless ``--fast``), learns the
+feedback on the actions the session's agent took (``action_taken``), and answers every
+observation with its own greedy action, which is compared with the session's. The run folder
+holds the learner's files (feedback log, metrics, checkpoints), ``replay_steps.csv``,
+``learning_curve.png`` and ``summary.json``.
+
+Exit code: 0 when every item was sent and both nodes exited cleanly; 1 when a node died or did
+not start; 2 for bad options, bags or files; 130 on Ctrl-C.
+"""
+
+import contextlib
+import csv
+import datetime
+import json
+import os
+from pathlib import Path
+import signal
+import sys
+import threading
+import time
+from typing import Optional
+
+from attention_bringup import report
+from attention_bringup.params import ParamsFileError
+from attention_bringup.plan import chosen_domain
+from attention_bringup.processes import exit_description, NodeGroup
+from attention_bringup.replay.output import plot_replay, summary_lines
+from attention_bringup.replay.plan import (
+    build_plan, OPTIONS_FILE, PARAMS_FILE, parse_options, ReplayPlan, STEPS_FILE)
+from attention_bringup.replay.player import ReplayPlayer, sleep_until, task_action_of_bytes
+from attention_bringup.replay.session import Agreement, RECEIPTED, replay_items
+from attention_common import topics
+from attention_common.isolation import apply_to_this_process, isolated_environ, reserved_domain
+from attention_common.run_files import LEARNING_CURVE_FILE, LOGS_DIR, SUMMARY_FILE
+from attention_tasks.task import load_task
+from session_bag.reader import BagReader
+
+STARTUP_TIMEOUT_S = 300.0
+ANSWER_TIMEOUT_S = 10.0
+"""Longest wait for the learner's answer to one observation (then the step counts unanswered)."""
+RECEIPT_TIMEOUT_S = 10.0
+METRICS_TIMEOUT_S = 5.0
+STOP_TIMEOUT_S = 30.0
+PROGRESS_PERIOD_S = 15.0
+EXIT_INTERRUPTED = 130
+
+
+class Replay:
+    """One replay: start the two nodes, send the bag, stop them, write the run folder."""
+
+    def __init__(self, plan: ReplayPlan, domain_id: int, out=sys.stdout, err=sys.stderr):
+        self.plan = plan
+        self.domain_id = domain_id
+        self.out, self.err = out, err
+        self.task = load_task(plan.task)
+        self.interrupted = threading.Event()
+        self.agreement = Agreement()
+        self.counts = {}
+        self.session_receipts = {}  # the session's feedback seq -> its stamp (feedback_logged)
+
+    def _say(self, text: str) -> None:
+        if not self.plan.options.quiet:
+            self.err.write(text + '\n')
+            self.err.flush()
+
+    def run(self) -> int:
+        run_dir = self.plan.run_dir
+        if run_dir.exists() and any(run_dir.iterdir()):
+            raise FileExistsError(f'{run_dir} is not empty; choose another --run-dir')
+        (run_dir / LOGS_DIR).mkdir(parents=True)
+        (run_dir / PARAMS_FILE).write_text(self.plan.params_text())
+        report.write_json(run_dir / OPTIONS_FILE, self.plan.options_dict())
+        previous = {sig: signal.signal(sig, lambda *_: self.interrupted.set())
+                    for sig in (signal.SIGINT, signal.SIGTERM)}
+        try:
+            return self._run()
+        finally:
+            for sig, handler in previous.items():
+                signal.signal(sig, handler)
+
+    def _run(self) -> int:
+        import rclpy
+        from rclpy.context import Context
+        from rclpy.signals import SignalHandlerOptions
+
+        from attention_bringup.monitor import spin_until_shutdown
+        from attention_common.executors import make_executor
+
+        apply_to_this_process(self.domain_id)
+        context = Context()
+        rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)
+        player = ReplayPlayer(self.task, context=context)
+        executor = make_executor(context=context)
+        executor.add_node(player)
+        spinner = threading.Thread(target=spin_until_shutdown,
+                                   args=(executor, context, self.err), daemon=True)
+        spinner.start()
+        env = isolated_environ(self.domain_id)
+        env.update({'PYTHONUNBUFFERED': '1', 'RCUTILS_COLORIZED_OUTPUT': '0',
+                    'ROS_LOG_DIR': str(self.plan.run_dir / LOGS_DIR / 'ros')})
+        group = NodeGroup(env)
+        started = time.monotonic()
+        self._say(f'Replaying {self.plan.bag_dir} into {self.plan.run_dir} (ROS domain '
+                  f'{self.domain_id}); {self.plan.task}, {self.plan.condition}, seed '
+                  f'{self.plan.seed}, {"fast" if self.plan.options.fast else "recorded timing"}')
+        status = 'completed'
+        try:
+            for command in self.plan.commands:
+                group.start(command)
+            status = self._wait_ready(group, player)
+            if status is None:
+                status = self._send(group, player)
+            exit_codes = group.stop(STOP_TIMEOUT_S)
+        finally:
+            if group.running():
+                group.stop(sigint_timeout=10.0)
+            executor.shutdown(timeout_sec=2.0)
+            player.destroy_node()
+            rclpy.try_shutdown(context=context)
+            spinner.join(timeout=5.0)
+        if status == 'completed' and any(code != 0 for code in exit_codes.values()):
+            status = 'unclean_exit'
+        return self._finish(status, exit_codes, player, time.monotonic() - started)
+
+    def _wait_ready(self, group: NodeGroup, player: ReplayPlayer) -> Optional[str]:
+        deadline = time.monotonic() + STARTUP_TIMEOUT_S
+        while not player.nodes_listen():
+            if self.interrupted.is_set():
+                return 'interrupted'
+            dead = group.first_exited()
+            if dead is not None:
+                self.err.write(f'attention_replay: {dead.name} died at start-up '
+                               f'({exit_description(dead.poll())}); see {dead.command.log_path}\n')
+                return 'node_failed'
+            if time.monotonic() > deadline:
+                self.err.write(f'attention_replay: the nodes do not listen after '
+                               f'{STARTUP_TIMEOUT_S:.0f} s; logs in '
+                               f'{self.plan.run_dir / LOGS_DIR}\n')
+                return 'stalled'
+            time.sleep(0.05)
+        return None
+
+    def _send(self, group: NodeGroup, player: ReplayPlayer) -> str:
+        """Send every item of the bag in order; return the run's status."""
+        fast = self.plan.options.fast
+        reader = BagReader(self.plan.bag_dir)
+        receipts_expected = 0
+        first_log = start = None
+        last_line = time.monotonic()
+        for item in replay_items(self._watch_session(reader.messages())):
+            if self.interrupted.is_set():
+                return 'interrupted'
+            if group.first_exited() is not None:
+                dead = group.first_exited()
+                self.err.write(f'attention_replay: {dead.name} died '
+                               f'({exit_description(dead.poll())}); see {dead.command.log_path}\n')
+                return 'node_failed'
+            if first_log is None:
+                first_log, start = item.log_time, time.monotonic()
+            if not fast:
+                sleep_until(start + (item.log_time - first_log) / 1e9)
+            self.counts[item.topic] = self.counts.get(item.topic, 0) + 1
+            if item.topic == topics.OBSERVATION:
+                self._step(player, item)
+            else:
+                player.send(item.topic, item.data)
+                if item.topic in RECEIPTED:
+                    receipts_expected += 1
+                    if fast:  # the learner has it before the next observation, as it had
+                        player.wait_receipts(receipts_expected, RECEIPT_TIMEOUT_S)
+            if not self.plan.options.quiet and time.monotonic() - last_line > PROGRESS_PERIOD_S:
+                last_line = time.monotonic()
+                fraction = self.agreement.fraction()
+                self._say(f'  {len(self.agreement.rows)} steps replayed, agreement '
+                          f'{"-" if fraction is None else f"{fraction:.3f}"}, '
+                          f'{player.receipts} feedback/utterances logged')
+        if not player.wait_receipts(receipts_expected, RECEIPT_TIMEOUT_S):
+            self.err.write(f'attention_replay: {receipts_expected - player.receipts} of '
+                           f'{receipts_expected} feedback/utterances not logged by the learner '
+                           f'within {RECEIPT_TIMEOUT_S:.0f} s\n')
+        # The learner's metrics once they count every step sent (the summary's numbers).
+        player.wait_metrics('act/count', len(self.agreement.rows), METRICS_TIMEOUT_S)
+        self.complete = reader.complete
+        self.problem = reader.problem
+        return 'completed'
+
+    def _step(self, player: ReplayPlayer, item) -> None:
+        session = None
+        if item.taken is not None:
+            session = task_action_of_bytes(item.taken, self.task)
+            player.send(topics.ACTION_TAKEN, item.taken)
+        player.send(topics.OBSERVATION, item.data)
+        player.wait_answer(item.stamp, ANSWER_TIMEOUT_S)
+        self.agreement.add(item.stamp, session, player.answer(item.stamp))
+
+    def _watch_session(self, messages):
+        """Pass the bag's messages on; note the session's own feedback receipts on the way."""
+        from diagnostic_msgs.msg import DiagnosticArray
+        from rclpy.serialization import deserialize_message
+        for message in messages:
+            if message.topic.endswith('/' + topics.FEEDBACK_LOGGED):
+                for status in deserialize_message(message.data, DiagnosticArray).status:
+                    values = {kv.key: kv.value for kv in status.values}
+                    if status.name == 'feedback' and 'seq' in values:
+                        stamp = values.get('stamp_ns')
+                        self.session_receipts[int(values['seq'])] = (
+                            int(stamp) if stamp not in (None, '', 'None') else None)
+            yield message
+
+    def _finish(self, status, exit_codes, player, wall_s) -> int:
+        run_dir = self.plan.run_dir
+        rows = self.agreement.rows
+        with open(run_dir / STEPS_FILE, 'w', newline='') as file:
+            writer = csv.DictWriter(file, fieldnames=list(rows[0]) if rows else ['step'])
+            writer.writeheader()
+            writer.writerows(rows)
+        same = [seq for seq, stamp in player.receipt_stamps.items()
+                if seq in self.session_receipts and self.session_receipts[seq] == stamp]
+        summary = {
+            'kind': 'replay',
+            'status': status,
+            'bag': str(self.plan.bag_dir),
+            'bag_complete': getattr(self, 'complete', None),
+            'bag_problem': getattr(self, 'problem', None),
+            'task': self.plan.task,
+            'condition': self.plan.condition,
+            'session_condition': self.plan.session.options.get('condition'),
+            'seed': self.plan.seed,
+            'fast': self.plan.options.fast,
+            'wall_time_s': round(wall_s, 2),
+            'sent': self.counts,
+            'receipts': player.receipts,
+            'feedback_same_step': {'same': len(same),
+                                   'compared': len(set(player.receipt_stamps)
+                                                   & set(self.session_receipts))},
+            **self.agreement.summary(),
+            'chance_agreement': round(1.0 / self.task.num_actions, 4),
+            'metrics': dict(player.metrics),
+            'exit_codes': exit_codes,
+            'domain_id': self.domain_id,
+            'finished_at': datetime.datetime.now().isoformat(timespec='seconds'),
+            'files': {'params': PARAMS_FILE, 'steps': STEPS_FILE, 'logs': LOGS_DIR},
+        }
+        summary['files']['learning_curve'] = plot_replay(
+            summary, run_dir / LEARNING_CURVE_FILE,
+            f'replay of {self.plan.bag_dir.parent.name}: {self.plan.condition}, seed '
+            f'{self.plan.seed}') and LEARNING_CURVE_FILE
+        report.write_json(run_dir / SUMMARY_FILE, summary)
+        self.out.write(f'Run folder: {run_dir}\n')
+        for line in summary_lines(summary):
+            self.out.write(f'  {line}\n')
+        self.out.flush()
+        if status == 'completed':
+            return 0
+        return EXIT_INTERRUPTED if status == 'interrupted' else 1
+
+
+def main(argv: Optional[list] = None) -> int:
+    options = parse_options(argv)
+    try:
+        plan = build_plan(options, Path(sys.executable).parent, Path.cwd())
+        chosen = chosen_domain(options, os.environ)
+    except (ParamsFileError, ValueError, json.JSONDecodeError) as error:
+        sys.stderr.write(f'attention_replay: {error}\n')
+        return 2
+    missing = [c.argv[0] for c in plan.commands if not os.access(c.argv[0], os.X_OK)]
+    if missing:
+        sys.stderr.write(f'attention_replay: node executables not found: {", ".join(missing)} '
+                         '(run make setup)\n')
+        return 2
+    domain = reserved_domain() if chosen is None else contextlib.nullcontext(chosen)
+    with domain as domain_id:
+        try:
+            return Replay(plan, domain_id).run()
+        except FileExistsError as error:
+            sys.stderr.write(f'attention_replay: {error}\n')
+            return 2
+
+
+if __name__ == '__main__':
+    sys.exit(main())

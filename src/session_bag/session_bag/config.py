@@ -1,0 +1,48 @@
+"""The recorder's parameters, in one dataclass (each field is a ROS parameter of that name)."""
+
+from dataclasses import dataclass
+import datetime
+from pathlib import Path
+from typing import List
+
+from session_bag.recorded import RECORDED
+from session_bag.writer import COMPRESSIONS
+
+
+@dataclass
+class RecorderConfig:
+    """Where the bag goes and how it is written."""
+
+    bag_dir: str = ''
+    """The bag's folder (it must not hold files yet); '' = bags/<date-time> here."""
+    run_dir: str = ''
+    """attention_train's run folder: its launch options and parameters go into the bag's
+    custom_data, so that the bag alone tells how the session was run."""
+    compression: str = 'zstd'
+    """MCAP chunk compression: zstd, lz4 or none."""
+    flush_period_s: float = 0.5
+    """Wall seconds between flushes: a killed recorder loses at most this much of the bag."""
+    topics: str = ''
+    """Comma-separated topics to record ('' = every topic of the graph, session_bag.recorded)."""
+
+    def validate(self) -> None:
+        """Raise ValueError naming the first impossible value."""
+        if self.compression not in COMPRESSIONS:
+            raise ValueError(f'compression must be one of {", ".join(COMPRESSIONS)}, got '
+                             f'{self.compression!r}')
+        if not 0.05 <= self.flush_period_s <= 1.0:
+            raise ValueError('flush_period_s must be within 0.05..1.0 s (a crash loses at most '
+                             f'this much), got {self.flush_period_s}')
+        unknown = set(self.topic_names()) - {t.name for t in RECORDED}
+        if unknown:
+            raise ValueError(f'topics {", ".join(sorted(unknown))} are not topics of the graph '
+                             f'(known: {", ".join(t.name for t in RECORDED)})')
+
+    def topic_names(self) -> List[str]:
+        chosen = [name.strip() for name in self.topics.split(',') if name.strip()]
+        return chosen or [t.name for t in RECORDED]
+
+    def bag_path(self, cwd: Path, now: datetime.datetime) -> Path:
+        if self.bag_dir:
+            return (cwd / self.bag_dir).resolve()
+        return cwd / 'bags' / f'{now:%Y%m%d-%H%M%S}'

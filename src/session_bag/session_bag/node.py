@@ -1,0 +1,141 @@
+"""
+session_recorder: every topic of the graph into a rosbag2 bag (MCAP storage), as it comes.
+
+Subscriptions are raw (``raw=True``): each message is written as the CDR bytes its publisher
+sent, never deserialized, with DDS's receive time (the bag's log time) and source time (its
+publish time), like ``ros2 bag record``. A topic's channel is added on its first message, with
+the QoS its publishers offer (asked from the graph then). Every ``flush_period_s`` the chunk
+is closed and handed to the OS and metadata.yaml rewritten, so a SIGKILL loses at most that.
+A message that cannot be written (a full disk) is logged and counted; the node keeps going.
+"""
+
+import datetime
+import functools
+import json
+from pathlib import Path
+
+from attention_common.executors import with_message_info
+from attention_common.node_main import run_node, StartupError
+from attention_common.parameters import declare_dataclass
+from attention_common.run_files import OPTIONS_FILE, PARAMS_FILE
+from rclpy.clock import Clock, ClockType
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from session_bag.config import RecorderConfig
+from session_bag.metadata import qos_dict
+from session_bag.recorded import BY_NAME, RecordedTopic, type_name
+from session_bag.writer import BagWriter
+
+IMAGE_DEPTH = 100
+"""Images waiting to be written, per topic (a reliable publisher of depth 10 waits for us)."""
+SMALL_DEPTH = 1000
+LOG_THROTTLE_S = 5.0
+
+
+def subscriber_qos(topic: RecordedTopic) -> QoSProfile:
+    """
+    Return the recorder's QoS on ``topic``: reliable, volatile, deep.
+
+    Reliable, so a reliable publisher waits for the recorder; KEEP_ALL for a person's words,
+    as their other readers have.
+    """
+    designed = topic.designed_qos
+    if designed.history == HistoryPolicy.KEEP_ALL:
+        return QoSProfile(history=HistoryPolicy.KEEP_ALL,
+                          reliability=ReliabilityPolicy.RELIABLE,
+                          durability=DurabilityPolicy.VOLATILE)
+    depth = IMAGE_DEPTH if type_name(topic.msg_type) == 'sensor_msgs/msg/Image' else SMALL_DEPTH
+    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=depth,
+                      reliability=ReliabilityPolicy.RELIABLE,
+                      durability=DurabilityPolicy.VOLATILE)
+
+
+def run_custom_data(run_dir: str) -> dict:
+    """Return the run folder's launch options and parameters, for the bag's custom_data."""
+    if not run_dir:
+        return {}
+    data = {'attention.run_dir': str(run_dir)}
+    for key, name in (('attention.launch_options', OPTIONS_FILE),
+                      ('attention.params', PARAMS_FILE)):
+        path = Path(run_dir) / name
+        if path.is_file():
+            data[key] = path.read_text()
+    return data
+
+
+class RecorderNode(Node):
+    """Writes what the graph publishes into one bag."""
+
+    def __init__(self, **kwargs):
+        super().__init__('session_recorder', **kwargs)
+        self.config = declare_dataclass(self, RecorderConfig)
+        try:
+            self.config.validate()
+            bag_dir = self.config.bag_path(Path.cwd(), datetime.datetime.now())
+            self.writer = BagWriter(bag_dir, self.config.compression,
+                                    run_custom_data(self.config.run_dir))
+        except (ValueError, OSError) as error:
+            raise StartupError(f'session_recorder: {error}') from error
+        self.errors = 0
+        self._names = {}
+        for name in self.config.topic_names():
+            topic = BY_NAME[name]
+            subscription = self.create_subscription(
+                topic.msg_type, topic.name,
+                with_message_info(functools.partial(self._on_message, topic)),
+                subscriber_qos(topic), raw=True)
+            self._names[topic.name] = subscription.topic_name  # absolute, as the bag keeps it
+        steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self.create_timer(self.config.flush_period_s, self._flush, clock=steady)
+        self.get_logger().info(f'recording {len(self._names)} topics to {bag_dir} '
+                               f'({self.config.compression}, flushed every '
+                               f'{self.config.flush_period_s:g} s)')
+
+    def _on_message(self, topic: RecordedTopic, data: bytes, info: dict) -> None:
+        name = self._names[topic.name]
+        try:
+            if not self.writer.has_topic(name):
+                self.writer.add_topic(name, type_name(topic.msg_type), self._offered_qos(topic))
+            self.writer.write(name, info.get('received_timestamp') or self._now_ns(), data,
+                              info.get('source_timestamp'),
+                              info.get('publication_sequence_number') or 0)
+        except (OSError, ValueError) as error:
+            self.errors += 1
+            self.get_logger().error(f'{name}: a message could not be written ({error}; '
+                                    f'{self.errors} so far)',
+                                    throttle_duration_sec=LOG_THROTTLE_S)
+
+    def _offered_qos(self, topic: RecordedTopic) -> list:
+        """Return the QoS of the topic's publishers now (the designed one if none is known)."""
+        name = self._names[topic.name]
+        profiles = [qos_dict(info.qos_profile)
+                    for info in self.get_publishers_info_by_topic(name)]
+        return profiles or [qos_dict(topic.designed_qos)]
+
+    def _now_ns(self) -> int:
+        return self.get_clock().now().nanoseconds
+
+    def _flush(self) -> None:
+        try:
+            self.writer.flush()
+        except OSError as error:
+            self.errors += 1
+            self.get_logger().error(f'the bag could not be flushed ({error})',
+                                    throttle_duration_sec=LOG_THROTTLE_S)
+
+    def destroy_node(self) -> None:
+        writer = getattr(self, 'writer', None)
+        if writer is not None and not writer.closed:
+            writer.close()
+            counts = json.dumps(writer.counts)
+            self.get_logger().info(f'bag closed: {writer.message_count} messages in '
+                                   f'{writer.bag_dir} {counts}')
+        super().destroy_node()
+
+
+def main(args=None) -> int:
+    return run_node(RecorderNode, args)
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())

@@ -1,0 +1,119 @@
+"""A recorded training run, its bag read back, and the session replayed into a fresh learner."""
+
+import csv
+import json
+from pathlib import Path
+import subprocess
+import sys
+
+import pytest
+from rclpy.serialization import deserialize_message
+from rosbags.rosbag2 import Reader as RosbagsReader
+from sensor_msgs.msg import Image
+import yaml
+
+BIN = Path(sys.executable).parent
+STEPS = 300
+TYPES = {
+    '/observation': 'sensor_msgs/msg/Image', '/saliency': 'sensor_msgs/msg/Image',
+    '/saliency_mask': 'sensor_msgs/msg/Image', '/action': 'sensor_msgs/msg/Joy',
+    '/feedback_stamped': 'geometry_msgs/msg/Vector3Stamped',
+    '/utterance': 'std_msgs/msg/String',
+    '/utterance_stamped': 'diagnostic_msgs/msg/DiagnosticArray',
+    '/feedback_logged': 'diagnostic_msgs/msg/DiagnosticArray',
+    '/agent_position': 'geometry_msgs/msg/PointStamped',
+    '/env_status': 'diagnostic_msgs/msg/DiagnosticArray',
+    '/metrics': 'diagnostic_msgs/msg/DiagnosticArray', '/clock': 'rosgraph_msgs/msg/Clock',
+}
+"""Every topic a run with the synthetic trainer publishes (a person's plain feedback and
+action_taken have no publisher here)."""
+
+
+def _json(path: Path) -> dict:
+    return json.loads(path.read_text())
+
+
+@pytest.fixture(scope='module')
+def recorded_run(tmp_path_factory):
+    run_dir = tmp_path_factory.mktemp('recorded') / 'run'
+    result = subprocess.run([str(BIN / 'attention_train'), '--steps', str(STEPS), '--record',
+                             '--seed', '4', '--run-dir', str(run_dir)],
+                            capture_output=True, text=True, timeout=300)
+    assert result.returncode == 0, result.stderr[-4000:]
+    return run_dir, result
+
+
+@pytest.mark.topics
+def test_a_recorded_run_leaves_a_bag_that_rosbag2_readers_open(recorded_run):
+    run_dir, result = recorded_run
+    summary = _json(run_dir / 'summary.json')
+    assert summary['exit_codes']['session_recorder'] == 0
+    assert summary['bag']['dir'] == 'bag' and summary['bag']['repaired'] is False
+    assert 'bag: ' in result.stdout.splitlines()[-1]
+    with RosbagsReader(run_dir / 'bag') as reader:
+        types = {c.topic: c.msgtype for c in reader.connections}
+        counts = {c.topic: c.msgcount for c in reader.connections}
+        frame = next(raw for c, _, raw in reader.messages() if c.topic == '/observation')
+        reliability = {c.topic: c.ext.offered_qos_profiles[0].reliability.name
+                       for c in reader.connections}
+    assert types == TYPES
+    assert counts == summary['bag']['topics']
+    # The bag heard what the launcher's monitor heard, step for step.
+    heard = summary['message_counts']
+    for topic in ('env_status', 'saliency', 'feedback_stamped', 'utterance_stamped'):
+        assert counts[f'/{topic}'] == heard[topic], topic
+    assert counts['/observation'] >= STEPS and counts['/action'] == counts['/observation']
+    assert counts['/feedback_logged'] == (summary['learner_log']['feedback']
+                                          + summary['learner_log']['utterances'])
+    assert set(reliability.values()) == {'RELIABLE'}
+    image = deserialize_message(frame, Image)
+    assert (image.height, image.width, image.encoding) == (210, 160, 'rgb8')
+    custom = yaml.safe_load((run_dir / 'bag' / 'metadata.yaml').read_text())[
+        'rosbag2_bagfile_information']['custom_data']
+    assert json.loads(custom['attention.launch_options'])['seed'] == 4
+
+
+def _replay(run_dir: Path, out: Path, *options: str) -> subprocess.CompletedProcess:
+    return subprocess.run([str(BIN / 'attention_replay'), str(run_dir), '--run-dir', str(out),
+                           '--quiet', *options], capture_output=True, text=True, timeout=300)
+
+
+@pytest.mark.topics
+def test_the_session_replays_into_a_fresh_learner_that_then_acts(recorded_run, tmp_path):
+    run_dir, _ = recorded_run
+    session = _json(run_dir / 'summary.json')
+    result = _replay(run_dir, tmp_path / 'replay', '--fast')
+    assert result.returncode == 0, result.stderr[-4000:]
+    summary = _json(tmp_path / 'replay' / 'summary.json')
+    bag = session['bag']['topics']
+    assert summary['status'] == 'completed' and summary['condition'] == 'language'
+    assert summary['exit_codes'] == {'saliency_node': 0, 'tamer_node': 0}
+    # Every observation was answered by the new learner; every feedback and utterance logged,
+    # each feedback on the very step the session's learner put it on.
+    assert summary['steps'] == bag['/observation'] and summary['unanswered'] == 0
+    assert summary['compared'] == summary['steps']
+    assert summary['receipts'] == bag['/feedback_stamped'] + bag['/utterance']
+    same = summary['feedback_same_step']
+    assert same['compared'] == bag['/feedback_stamped'] and same['same'] == same['compared']
+    assert 0.0 <= summary['agreement'] <= 1.0 and summary['curve']
+    assert int(summary['metrics']['act/taken']) == summary['steps']
+    assert int(summary['metrics']['feedback/count']) > 0  # it learned from them
+    with open(tmp_path / 'replay' / 'replay_steps.csv') as steps:
+        rows = list(csv.DictReader(steps))
+    assert len(rows) == summary['steps'] and all(r['replayed_action'] != '' for r in rows)
+    assert any((tmp_path / 'replay' / 'checkpoints').iterdir())
+    assert (tmp_path / 'replay' / 'learning_curve.png').read_bytes()[:4] == b'\x89PNG'
+    assert 'greedy actions agree' in result.stdout
+
+
+@pytest.mark.topics
+def test_another_condition_learns_from_the_same_recorded_feedback(recorded_run, tmp_path):
+    run_dir, _ = recorded_run
+    result = _replay(run_dir, tmp_path / 'blind', '--fast', '--condition', 'blind_obs')
+    assert result.returncode == 0, result.stderr[-4000:]
+    summary = _json(tmp_path / 'blind' / 'summary.json')
+    params = yaml.safe_load((tmp_path / 'blind' / 'replay_params.yaml').read_text())
+    assert params['tamer_node']['ros__parameters']['input_image'] == 'saliency'
+    assert params['saliency_node']['ros__parameters']['mode'] == 'blind_agent'
+    assert (summary['condition'], summary['session_condition']) == ('blind_obs', 'language')
+    assert summary['unanswered'] == 0 and summary['feedback_same_step']['same'] > 0
