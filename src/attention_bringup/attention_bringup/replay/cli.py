@@ -8,16 +8,21 @@ observation with its own greedy action, which is compared with the session's. Th
 holds the learner's files (feedback log, metrics, checkpoints), ``replay_steps.csv``,
 ``learning_curve.png`` and ``summary.json``.
 
+``--all-conditions`` replays the same session once per study condition (``OUT/<condition>/``,
+resumable) and prints a table: the learner changes, the person's teaching does not.
+
 Exit code: 0 when every item was sent and both nodes exited cleanly; 1 when a node died or did
 not start; 2 for bad options, bags or files; 130 on Ctrl-C.
 """
 
 import contextlib
 import csv
+import dataclasses
 import datetime
 import json
 import os
 from pathlib import Path
+import shutil
 import signal
 import sys
 import threading
@@ -25,10 +30,11 @@ import time
 from typing import Optional
 
 from attention_bringup import report
+from attention_bringup.graph import CONDITIONS
 from attention_bringup.params import ParamsFileError
 from attention_bringup.plan import chosen_domain
 from attention_bringup.processes import exit_description, NodeGroup
-from attention_bringup.replay.output import plot_replay, summary_lines
+from attention_bringup.replay.output import plot_replay, study_table, summary_lines
 from attention_bringup.replay.plan import (
     build_plan, OPTIONS_FILE, PARAMS_FILE, parse_options, ReplayPlan, STEPS_FILE)
 from attention_bringup.replay.player import ReplayPlayer, sleep_until, task_action_of_bytes
@@ -259,6 +265,26 @@ class Replay:
         return EXIT_INTERRUPTED if status == 'interrupted' else 1
 
 
+def replay_study(options, domain_id: int) -> int:
+    """Replay one session once per condition into ``out/<condition>``; print the table."""
+    out = Path(options.out or Path('runs') / f'{datetime.datetime.now():%Y%m%d-%H%M%S}'
+               '-replay-study').resolve()
+    rows, code = [], 0
+    for condition in CONDITIONS:
+        run_dir = out / condition
+        if not (run_dir / SUMMARY_FILE).exists():  # resumable: a finished one is kept
+            plan = build_plan(dataclasses.replace(options, condition=condition,
+                                                  run_dir=str(run_dir)),
+                              Path(sys.executable).parent, Path.cwd())
+            if run_dir.exists():  # an interrupted one starts again
+                shutil.rmtree(run_dir)
+            code = max(code, Replay(plan, domain_id).run())
+        rows.append(json.loads((run_dir / SUMMARY_FILE).read_text()))
+    report.write_json(out / 'replay_study.json', rows)
+    sys.stdout.write(study_table(rows) + f'\nReplay study: {out}\n')
+    return code
+
+
 def main(argv: Optional[list] = None) -> int:
     options = parse_options(argv)
     try:
@@ -275,6 +301,8 @@ def main(argv: Optional[list] = None) -> int:
     domain = reserved_domain() if chosen is None else contextlib.nullcontext(chosen)
     with domain as domain_id:
         try:
+            if options.all_conditions:
+                return replay_study(options, domain_id)
             return Replay(plan, domain_id).run()
         except FileExistsError as error:
             sys.stderr.write(f'attention_replay: {error}\n')

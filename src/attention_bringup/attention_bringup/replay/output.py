@@ -11,9 +11,7 @@ def summary_lines(summary: Mapping) -> List[str]:
     agreement = summary.get('agreement')
     last = summary.get('agreement_last_quarter')
     same = summary.get('feedback_same_step') or {}
-
-    def share(value):
-        return '-' if value is None else f'{value:.3f}'
+    share = _share
     return [
         f'{summary.get("steps", 0)} steps replayed in {summary.get("wall_time_s", 0):.0f} s; '
         f'{summary.get("unanswered", 0)} unanswered',
@@ -23,6 +21,25 @@ def summary_lines(summary: Mapping) -> List[str]:
         f'the same step as in the session: {same.get("same", 0)} of {same.get("compared", 0)}',
         f'{summary.get("status", "?")}: exit codes {summary.get("exit_codes")}',
     ]
+
+
+def study_table(summaries: List[Mapping]) -> str:
+    """Return a markdown table of one session replayed per condition."""
+    lines = ['| condition | steps | agreement | last quarter | feedback learned | '
+             'same step | loss |', '|---|---|---|---|---|---|---|']
+    for s in summaries:
+        metrics = s.get('metrics') or {}
+        same = s.get('feedback_same_step') or {}
+        lines.append(
+            f'| {s["condition"]} | {s.get("steps", 0)} | {_share(s.get("agreement"))} | '
+            f'{_share(s.get("agreement_last_quarter"))} | {metrics.get("feedback/count", "-")} '
+            f'| {same.get("same", 0)}/{same.get("compared", 0)} | '
+            f'{metrics.get("train/loss", "-")} |')
+    return '\n'.join(lines)
+
+
+def _share(value) -> str:
+    return '-' if value is None else f'{value:.3f}'
 
 
 def read_losses(path: Path) -> List[tuple]:

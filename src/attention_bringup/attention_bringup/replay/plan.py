@@ -46,6 +46,10 @@ class ReplayOptions:
     run_dir: Optional[str] = None
     domain: Optional[int] = None
     quiet: bool = False
+    all_conditions: bool = False
+    """Replay once per study condition, each into ``out/<condition>``."""
+    out: Optional[str] = None
+    """With ``all_conditions``: the study's folder (default runs/<timestamp>-replay-study)."""
 
 
 def argument_parser() -> argparse.ArgumentParser:
@@ -72,6 +76,13 @@ def argument_parser() -> argparse.ArgumentParser:
     parser.add_argument('--domain', type=domain_id, default=None, metavar='ID',
                         help='ROS_DOMAIN_ID (default: ROS_DOMAIN_ID if set, else a free one)')
     parser.add_argument('--quiet', action='store_true', help='no progress lines')
+    parser.add_argument('--all-conditions', dest='all_conditions', action='store_true',
+                        help='replay the same session once per study condition (the learner '
+                             "changes, the person's teaching does not), each into "
+                             'OUT/<condition>/; a condition already done there is kept')
+    parser.add_argument('--out', default=None,
+                        help='with --all-conditions: the folder (default '
+                             'runs/<timestamp>-replay-study)')
     return parser
 
 
