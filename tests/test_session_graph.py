@@ -117,3 +117,35 @@ def test_another_condition_learns_from_the_same_recorded_feedback(recorded_run, 
     assert params['saliency_node']['ros__parameters']['mode'] == 'blind_agent'
     assert (summary['condition'], summary['session_condition']) == ('blind_obs', 'language')
     assert summary['unanswered'] == 0 and summary['feedback_same_step']['same'] > 0
+
+
+@pytest.mark.topics
+def test_a_killed_recorder_stops_the_run_and_its_bag_is_repaired(tmp_path):
+    import os
+    import signal
+    import time
+
+    from harness import wait_until
+    run_dir = tmp_path / 'run'
+    launcher = subprocess.Popen([str(BIN / 'attention_train'), '--steps', '100000', '--record',
+                                 '--run-dir', str(run_dir), '--quiet'],
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        assert wait_until(lambda: (run_dir / 'bag' / 'metadata.yaml').exists() and yaml.safe_load(
+            (run_dir / 'bag' / 'metadata.yaml').read_text())['rosbag2_bagfile_information'][
+                'message_count'] > 200 or launcher.poll() is not None, 150, interval=0.2)
+        assert launcher.poll() is None, launcher.communicate()[1][-4000:]
+        time.sleep(0.3)
+        os.kill(_json(run_dir / 'pids.json')['session_recorder'], signal.SIGKILL)
+        _, stderr = launcher.communicate(timeout=90)
+    finally:
+        if launcher.poll() is None:
+            launcher.kill()
+    assert launcher.returncode == 1
+    assert 'session_recorder died (killed by SIGKILL)' in stderr
+    assert 'the bag was repaired' in stderr
+    summary = _json(run_dir / 'summary.json')
+    assert summary['failed_node'] == 'session_recorder' and summary['bag']['repaired'] is True
+    with RosbagsReader(run_dir / 'bag') as reader:  # whole again, for every rosbag2 reader
+        counts = {c.topic: c.msgcount for c in reader.connections}
+    assert counts == summary['bag']['topics'] and counts['/observation'] > 10

@@ -408,8 +408,8 @@ class Launcher:
             repaired = None
             if exit_codes.get(RECORDER) != 0:
                 repaired = repair(bag_dir)
-                self._say(f'attention_train: {RECORDER} did not exit cleanly; the bag was '
-                          f'repaired ({repaired.messages} messages kept)')
+                self.err.write(f'attention_train: {RECORDER} did not exit cleanly; the bag '
+                               f'was repaired ({repaired.messages} messages kept)\n')
             summary = bag_info.bag_summary(bag_dir)
         except (OSError, ValueError) as error:
             return {'dir': str(bag_dir), 'error': str(error)}
