@@ -339,3 +339,22 @@ def test_judgements_wait_until_every_expected_reader_is_matched(probe, start_nod
     assert (sorted(stamp_to_ns(m.header.stamp) for m in second.snapshot())
             == sorted(stamp_to_ns(m.header.stamp) for m in first.feedback_stamped.snapshot()))
     assert trainer.stop(signal.SIGINT) == 0
+
+
+def test_utterances_wait_until_every_expected_listener_is_matched(probe, start_node):
+    """wait_utterance_subscribers 2: the first plain words reach both; stamped ones at once."""
+    first = TrainerListener(probe)
+    positions = probe.publisher(PointStamped, topics.AGENT_POSITION, qos.STEP_DATA)
+    trainer = start_node('feedback_node', {'utterance_interval': 0.0,
+                                           'wait_utterance_subscribers': 2})
+    assert probe.wait_for_subscribers(positions, timeout=STARTUP_S)
+    assert wait_until(lambda: probe.node.count_publishers(topics.UTTERANCE) >= 1, STARTUP_S)
+    publish_positions(positions, range(0, 20))
+    assert first.feedback_stamped.wait_count(19, REPLY_S), trainer.log_text()[-2000:]
+    assert first.utterance.snapshot() == [] and first.utterance_stamped.snapshot()
+    second = probe.subscribe(String, topics.UTTERANCE, qos.HUMAN)
+    assert second.wait_count(1, REPLY_S), trainer.log_text()[-2000:]
+    assert wait_until(lambda: len(first.utterance.snapshot()) == len(second.snapshot())
+                      == len(first.utterance_stamped.snapshot()) >= 19, REPLY_S)
+    assert [m.data for m in first.utterance.snapshot()] == [m.data for m in second.snapshot()]
+    assert trainer.stop(signal.SIGINT) == 0

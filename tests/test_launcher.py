@@ -149,6 +149,16 @@ def test_a_dead_node_is_named_and_the_rest_are_stopped(tmp_path):
     assert _progress_rows(run_dir) >= 20  # what was written before the crash is kept
 
 
+def _checkpoint_updates(run_dir: Path) -> int:
+    """The learner updates in the run's checkpoint (0 without one)."""
+    from tamer_node.persistence import load_checkpoint
+    try:
+        checkpoint = load_checkpoint(run_dir)
+    except (OSError, RuntimeError, EOFError):  # (written atomically, but be safe)
+        return 0
+    return int(checkpoint['learner']['updates']) if checkpoint else 0
+
+
 @pytest.mark.topics
 def test_a_killed_run_is_resumed_to_its_budget(tmp_path):
     run_dir = tmp_path / 'run'
@@ -159,9 +169,11 @@ def test_a_killed_run_is_resumed_to_its_budget(tmp_path):
     checkpoint = run_dir / 'checkpoints' / 'checkpoint.pt'
     try:
         pids = _wait_for_steps(launcher, run_dir, 200)
-        # The kill comes once the first checkpoint is on disk (after the first update): at
-        # 270 steps/s, 200 steps can come before it.
-        assert wait_until(lambda: checkpoint.exists() or launcher.poll() is not None, 60)
+        # The kill comes once a checkpoint with an update is on disk: at 270 steps/s, 200
+        # steps can come before it, and the first checkpoint may hold only feedback (it is
+        # taken once the learner has learned anything; the next one 1 s later).
+        assert wait_until(lambda: _checkpoint_updates(run_dir) >= 1 or launcher.poll()
+                          is not None, 60)
         os.kill(pids['tamer_node'], signal.SIGKILL)
         _, stderr = launcher.communicate(timeout=90)
     finally:

@@ -200,7 +200,8 @@ def test_plan_without_options_changes_only_budget_run_dir_and_trainer(tmp_path):
     # env_status before the learners start, so it sees the first step without a wait of its own.
     assert plan.overrides == {'env_node': {'max_steps': DEFAULT_STEPS},
                               'feedback_node': {'trainer': 'teacher',
-                                                'wait_feedback_subscribers': 2},
+                                                'wait_feedback_subscribers': 2,
+                                                'wait_utterance_subscribers': 2},
                               'tamer_node': {'run_dir': str(plan.run_dir),
                                              'greedy_margin': TEACHING_GREEDY_MARGIN}}
 
@@ -511,6 +512,7 @@ def test_a_person_s_session_is_recorded_unless_asked_not_to(tmp_path, synthetic,
     assert env.get('wait_observation_subscribers', 2) == 2 + records
     assert env.get('wait_position_subscribers', 1) == 1 + records
     assert feedback['wait_feedback_subscribers'] == 2 + records
+    assert feedback['wait_utterance_subscribers'] == 2 + records
     if records:
         argv = recorders[0].argv
         assert argv[0] == str(BIN / 'session_recorder')

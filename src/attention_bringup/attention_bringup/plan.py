@@ -297,6 +297,7 @@ def launcher_overrides(options: LaunchOptions, seed: int, run_dir: Path,
         overrides['tamer_node']['pace_updates'] = 0.0  # the env does not wait: act at once
     overrides['feedback_node']['trainer'] = options.trainer
     overrides['feedback_node']['wait_feedback_subscribers'] = 2  # the learner and the monitor
+    overrides['feedback_node']['wait_utterance_subscribers'] = 2  # saliency_node, tamer_node
     if options.trainer == 'teacher' and not options.thesis_learner:
         overrides['tamer_node']['greedy_margin'] = TEACHING_GREEDY_MARGIN
     if options.human_like:
@@ -314,6 +315,7 @@ def launcher_overrides(options: LaunchOptions, seed: int, run_dir: Path,
         overrides['env_node']['wait_position_subscribers'] = (
             int(env.get('wait_position_subscribers', 1)) + 1)
         overrides['feedback_node']['wait_feedback_subscribers'] += 1
+        overrides['feedback_node']['wait_utterance_subscribers'] += 1
     return {node: values for node, values in overrides.items() if values}
 
 

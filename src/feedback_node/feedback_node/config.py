@@ -39,6 +39,11 @@ class FeedbackConfig(TrainerConfig):
     """Judgements are held (in order, with their stamps) until the feedback topic has this many
     matched subscribers: a volatile topic gives a message only to readers matched when it is
     sent (attention_train sets 2: the learner and its monitor)."""
+    wait_utterance_subscribers: int = 0
+    """Plain utterances are held likewise (in order) until their topic has this many matched
+    subscribers besides this node (0: not held; attention_train sets 2, saliency_node and
+    tamer_node, 3 when it records a bag), so the first words, said at the first step, reach
+    the learner's log and the bag; ``utterance_stamped`` is never held."""
     summary_period: float = 30.0
     """Wall seconds between the log lines of counts (when they changed)."""
 
@@ -49,6 +54,9 @@ class FeedbackConfig(TrainerConfig):
         if self.wait_feedback_subscribers < 1:
             raise ValueError('wait_feedback_subscribers must be >= 1, got '
                              f'{self.wait_feedback_subscribers}')
+        if self.wait_utterance_subscribers < 0:
+            raise ValueError('wait_utterance_subscribers must be >= 0, got '
+                             f'{self.wait_utterance_subscribers}')
         if self.trainer not in TRAINERS:
             raise ValueError(f'trainer must be one of {TRAINERS}, got {self.trainer!r}')
         load_task(self.task)  # UnknownTask (a ValueError) names the installed tasks

@@ -58,6 +58,7 @@ class FeedbackNode(Node):
         self._synthetic = config.synthetic
         self._plain_copies = config.plain_copies
         self._wait_subscribers = config.wait_feedback_subscribers
+        self._wait_listeners = config.wait_utterance_subscribers
         self._now_ns = None  # the newest step stamp heard: this node's "now"
         self._restarts_logged = 0
         self._counts = {'bad_positions': 0, 'bad_status': 0, 'heard_utterances': 0,
@@ -81,6 +82,7 @@ class FeedbackNode(Node):
         steady = Clock(clock_type=ClockType.STEADY_TIME)
         self.create_timer(config.summary_period, self._log_summary, clock=steady)
         self._unsent = collections.deque(maxlen=HELD_FEEDBACK)  # until the learner is matched
+        self._unsaid = collections.deque(maxlen=HELD_FEEDBACK)  # plain utterances, likewise
         self.create_timer(HELD_CHECK_S, self._send_held, clock=steady)
         self._last_summary = None
         self.get_logger().info(f'feedback_node ready: {self._mode_text()}')
@@ -146,14 +148,26 @@ class FeedbackNode(Node):
         self._unsent.append((stamp_ns, h, y, z))
         self._send_held()
 
+    def _readers(self, publisher) -> int:
+        """Return the readers matched with ``publisher``, this node's own not counted."""
+        own = publisher in (self._utterance_pub, self._feedback_pub)  # it hears both topics
+        return publisher.get_subscription_count() - int(own)
+
     def _send_held(self) -> None:
         """
-        Publish the held feedback once ``wait_feedback_subscribers`` readers are matched.
+        Publish what is held once enough readers are matched.
+
+        Feedback once ``wait_feedback_subscribers`` readers are matched, plain utterances once
+        ``wait_utterance_subscribers`` are (besides this node's own); ``utterance_stamped``,
+        which the saliency node makes its images from, is never held.
 
         The topics are volatile: a message published before a reader matched never reaches it
         (a 300-step run can end before discovery is done: once the learner, once the launcher's
         monitor heard none of 300), so judgements wait here instead.
         """
+        if self._unsaid and self._readers(self._utterance_pub) >= self._wait_listeners:
+            while self._unsaid:
+                self._utterance_pub.publish(self._unsaid.popleft())
         stamped = not (self._kind == 'teacher' and self._config.delayed)
         publisher = self._feedback_stamped_pub if stamped else self._feedback_pub
         if publisher.get_subscription_count() < self._wait_subscribers:
@@ -208,8 +222,9 @@ class FeedbackNode(Node):
                     KeyValue(key='sentence_of', value=str(utterance.sentence_of))])
         stamped = DiagnosticArray(status=[status])
         stamped.header.stamp = ns_to_stamp(utterance.stamp_ns)
-        self._utterance_stamped_pub.publish(stamped)
-        self._utterance_pub.publish(String(data=utterance.text))
+        self._utterance_stamped_pub.publish(stamped)  # the saliency node's, at once as ever
+        self._unsaid.append(String(data=utterance.text))  # the plain copy the learner logs
+        self._send_held()
         self._counts['utterances'] += 1
         self.get_logger().debug(f'said at {utterance.stamp_ns / NS_PER_S:.2f} s: '
                                 f'{utterance.text!r}')

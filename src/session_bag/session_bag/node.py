@@ -4,9 +4,11 @@ session_recorder: every topic of the graph into a rosbag2 bag (MCAP storage), as
 Subscriptions are raw (``raw=True``): each message is written as the CDR bytes its publisher
 sent, never deserialized, with DDS's receive time (the bag's log time) and source time (its
 publish time), like ``ros2 bag record``. A topic's channel is added on its first message, with
-the QoS its publishers offer (asked from the graph then). Every ``flush_period_s`` the chunk
-is closed and handed to the OS and metadata.yaml rewritten, so a SIGKILL loses at most that.
-A message that cannot be written (a full disk) is logged and counted; the node keeps going.
+the QoS its publishers offer (asked from the graph then). The callbacks only queue; the
+writing, compression and flushes run on a thread of their own (``queued.py``). Every
+``flush_period_s`` the chunk is closed and handed to the OS and metadata.yaml rewritten, so a
+SIGKILL loses at most that. A message that cannot be written (a full disk) is logged and
+counted; the node keeps going.
 """
 
 import datetime
@@ -18,12 +20,13 @@ from attention_common.executors import with_message_info
 from attention_common.node_main import run_node, StartupError
 from attention_common.parameters import declare_dataclass
 from attention_common.run_files import OPTIONS_FILE, PARAMS_FILE
-from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from session_bag.config import RecorderConfig
 from session_bag.metadata import qos_dict
+from session_bag.queued import QueuedWriter
 from session_bag.recorded import BY_NAME, RecordedTopic, type_name
+from session_bag.schema import definition
 from session_bag.writer import BagWriter
 
 IMAGE_DEPTH = 100
@@ -72,38 +75,36 @@ class RecorderNode(Node):
         try:
             self.config.validate()
             bag_dir = self.config.bag_path(Path.cwd(), datetime.datetime.now())
-            self.writer = BagWriter(bag_dir, self.config.compression,
-                                    run_custom_data(self.config.run_dir))
+            writer = BagWriter(bag_dir, self.config.compression,
+                               run_custom_data(self.config.run_dir))
         except (ValueError, OSError) as error:
             raise StartupError(f'session_recorder: {error}') from error
-        self.errors = 0
+        self.writer = QueuedWriter(writer, self.config.flush_period_s, self._on_write_error)
         self._names = {}
-        for name in self.config.topic_names():
-            topic = BY_NAME[name]
+        chosen = [BY_NAME[name] for name in self.config.topic_names()]
+        for topic in chosen:  # rosbags' type store loads in 0.2-1 s: now, not at a first frame
+            definition(type_name(topic.msg_type))
+        for topic in chosen:
             subscription = self.create_subscription(
                 topic.msg_type, topic.name,
                 with_message_info(functools.partial(self._on_message, topic)),
                 subscriber_qos(topic), raw=True)
             self._names[topic.name] = subscription.topic_name  # absolute, as the bag keeps it
-        steady = Clock(clock_type=ClockType.STEADY_TIME)
-        self.create_timer(self.config.flush_period_s, self._flush, clock=steady)
         self.get_logger().info(f'recording {len(self._names)} topics to {bag_dir} '
                                f'({self.config.compression}, flushed every '
                                f'{self.config.flush_period_s:g} s)')
 
     def _on_message(self, topic: RecordedTopic, data: bytes, info: dict) -> None:
+        """Hand the message to the writer's thread (on the executor's: nothing slow here)."""
         name = self._names[topic.name]
-        try:
-            if not self.writer.has_topic(name):
-                self.writer.add_topic(name, type_name(topic.msg_type), self._offered_qos(topic))
-            self.writer.write(name, info.get('received_timestamp') or self._now_ns(), data,
-                              info.get('source_timestamp'),
-                              info.get('publication_sequence_number') or 0)
-        except (OSError, ValueError) as error:
-            self.errors += 1
-            self.get_logger().error(f'{name}: a message could not be written ({error}; '
-                                    f'{self.errors} so far)',
-                                    throttle_duration_sec=LOG_THROTTLE_S)
+        if not self.writer.has_topic(name):
+            self.writer.add_topic(name, type_name(topic.msg_type), self._offered_qos(topic))
+        self.writer.write(name, info.get('received_timestamp') or self._now_ns(), data,
+                          info.get('source_timestamp'),
+                          info.get('publication_sequence_number') or 0)
+
+    def _on_write_error(self, text: str) -> None:
+        self.get_logger().error(text, throttle_duration_sec=LOG_THROTTLE_S)
 
     def _offered_qos(self, topic: RecordedTopic) -> list:
         """Return the QoS of the topic's publishers now (the designed one if none is known)."""
@@ -115,21 +116,16 @@ class RecorderNode(Node):
     def _now_ns(self) -> int:
         return self.get_clock().now().nanoseconds
 
-    def _flush(self) -> None:
-        try:
-            self.writer.flush()
-        except OSError as error:
-            self.errors += 1
-            self.get_logger().error(f'the bag could not be flushed ({error})',
-                                    throttle_duration_sec=LOG_THROTTLE_S)
-
     def destroy_node(self) -> None:
-        writer = getattr(self, 'writer', None)
-        if writer is not None and not writer.closed:
-            writer.close()
-            counts = json.dumps(writer.counts)
+        queued = getattr(self, 'writer', None)
+        if queued is not None and not queued.writer.closed:
+            backlog = queued.backlog
+            if not queued.close():
+                self.get_logger().error(f'the bag writer did not finish its {backlog} queued '
+                                        'messages in time; the bag may be cut short')
+            writer = queued.writer
             self.get_logger().info(f'bag closed: {writer.message_count} messages in '
-                                   f'{writer.bag_dir} {counts}')
+                                   f'{writer.bag_dir} {json.dumps(writer.counts)}')
         super().destroy_node()
 
 

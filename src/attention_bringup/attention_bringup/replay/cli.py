@@ -160,8 +160,8 @@ class Replay:
         for item in replay_items(self._watch_session(reader.messages())):
             if self.interrupted.is_set():
                 return 'interrupted'
-            if group.first_exited() is not None:
-                dead = group.first_exited()
+            dead = group.first_exited()
+            if dead is not None:
                 self.err.write(f'attention_replay: {dead.name} died '
                                f'({exit_description(dead.poll())}); see {dead.command.log_path}\n')
                 return 'node_failed'
