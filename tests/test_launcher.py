@@ -150,7 +150,7 @@ def test_a_dead_node_is_named_and_the_rest_are_stopped(tmp_path):
 
 
 def _checkpoint_updates(run_dir: Path) -> int:
-    """The learner updates in the run's checkpoint (0 without one)."""
+    """Return the learner updates in the run's checkpoint (0 without one)."""
     from tamer_node.persistence import load_checkpoint
     try:
         checkpoint = load_checkpoint(run_dir)
