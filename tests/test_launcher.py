@@ -300,7 +300,11 @@ def test_doorkey_trains_through_the_real_graph(tmp_path):
     # said the next sub-goal every step; the saliency node grounded it in DoorKey's templates.
     assert 0.1 * STEPS <= summary['learner_log']['feedback'] <= 0.6 * STEPS
     assert counts['utterance_stamped'] >= 0.8 * STEPS
-    assert counts['saliency'] >= 0.8 * STEPS
+    # The learner's samples had their saliency images (the launcher only samples the images,
+    # best effort: under load it heard 156 of 300 once while the learner paired 290 of 290).
+    metrics = summary['metrics']
+    paired = metrics['pairing/with_saliency'] + metrics['pairing/without_saliency']
+    assert counts['saliency'] >= 1 and metrics['pairing/with_saliency'] >= 0.8 * paired > 0
     assert summary['metrics']['act/count'] >= 0.8 * STEPS
     assert summary['episodes'] >= STEPS // 100  # episodes of at most 100 steps
     with open(run_dir / 'progress.csv') as progress:
