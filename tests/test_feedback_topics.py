@@ -342,7 +342,7 @@ def test_judgements_wait_until_every_expected_reader_is_matched(probe, start_nod
 
 
 def test_utterances_wait_until_every_expected_listener_is_matched(probe, start_node):
-    """wait_utterance_subscribers 2: the first plain words reach both; stamped ones at once."""
+    """wait_utterance_subscribers 2: the first words, said at the first step, reach both."""
     first = TrainerListener(probe)
     positions = probe.publisher(PointStamped, topics.AGENT_POSITION, qos.STEP_DATA)
     trainer = start_node('feedback_node', {'utterance_interval': 0.0,
@@ -351,10 +351,12 @@ def test_utterances_wait_until_every_expected_listener_is_matched(probe, start_n
     assert wait_until(lambda: probe.node.count_publishers(topics.UTTERANCE) >= 1, STARTUP_S)
     publish_positions(positions, range(0, 20))
     assert first.feedback_stamped.wait_count(19, REPLY_S), trainer.log_text()[-2000:]
-    assert first.utterance.snapshot() == [] and first.utterance_stamped.snapshot()
+    assert first.utterance.snapshot() == [] and first.utterance_stamped.snapshot() == []
     second = probe.subscribe(String, topics.UTTERANCE, qos.HUMAN)
+    also = probe.subscribe(DiagnosticArray, topics.UTTERANCE_STAMPED, qos.HUMAN)
     assert second.wait_count(1, REPLY_S), trainer.log_text()[-2000:]
     assert wait_until(lambda: len(first.utterance.snapshot()) == len(second.snapshot())
                       == len(first.utterance_stamped.snapshot()) >= 19, REPLY_S)
     assert [m.data for m in first.utterance.snapshot()] == [m.data for m in second.snapshot()]
+    assert also.wait_count(len(second.snapshot()), REPLY_S)
     assert trainer.stop(signal.SIGINT) == 0

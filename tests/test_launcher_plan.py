@@ -523,6 +523,13 @@ def test_a_person_s_session_is_recorded_unless_asked_not_to(tmp_path, synthetic,
                              continuation=Continuation(2, 10))
         bag = next(c for c in resumed.commands if c.name == 'session_recorder').argv
         assert f'bag_dir:={plan.run_dir / "bag.session2"}' in bag  # a bag per session
+        # A resume that never got to a step left its bag: the next one goes beside it.
+        (plan.run_dir / 'bag.session2').mkdir(parents=True)
+        (plan.run_dir / 'bag.session2' / 'metadata.yaml').write_text('')
+        again = build_plan(plan.options, BIN, tmp_path,
+                           now=datetime.datetime(2025, 1, 2, 3, 4, 5),
+                           continuation=Continuation(2, 10))
+        assert again.bag_dir == plan.run_dir / 'bag.session2.2'
 
 
 def test_record_options_parse():

@@ -9,6 +9,7 @@ from attention_bringup.replay.plan import build_plan, ReplayOptions
 from attention_bringup.replay.session import (
     Agreement, header_stamp_ns, LOOKAHEAD_OBSERVATIONS, replay_items)
 from attention_common import qos
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from mcap.reader import make_reader
 import pytest
 from rclpy.serialization import deserialize_message, serialize_message
@@ -148,6 +149,50 @@ def test_a_torn_last_chunk_is_dropped_not_misread(tmp_path):
     assert reader.complete is False and reader.problem
 
 
+def test_a_file_cut_anywhere_reads_up_to_the_cut_and_never_raises(tmp_path):
+    bag = tmp_path / 'bag'
+    writer = _writer(bag)
+    for i in range(12):
+        writer.write('/observation', 10**9 + i, serialize_message(_image(i)))
+        if i % 4 == 3:
+            writer.flush()
+    writer.close()
+    whole = (bag / 'bag_0.mcap').read_bytes()
+    for cut in range(0, len(whole), 3):
+        (bag / 'bag_0.mcap').write_bytes(whole[:cut])
+        reader = BagReader(bag)
+        stamps = [header_stamp_ns(m.data) for m in reader.messages()]
+        assert stamps == list(range(len(stamps))), cut  # a prefix, in order
+        # (cut within the last bytes, after the footer: every message is there)
+        assert (reader.complete is False and reader.problem) or len(stamps) == 12, cut
+
+
+def test_the_writer_thread_outlives_a_failing_write(tmp_path):
+    from session_bag.queued import QueuedWriter
+    writer = BagWriter(tmp_path / 'bag')
+    add_topic, failures = writer.add_topic, []
+
+    def add_once_failing(*args):
+        if not failures:
+            failures.append(args[0])
+            raise OSError(28, 'No space left on device')
+        add_topic(*args)
+    writer.add_topic = add_once_failing
+    errors = []
+    queued = QueuedWriter(writer, 0.05, errors.append)
+    profiles = [metadata.qos_dict(qos.HUMAN)]
+    for i in range(3):
+        if not queued.has_topic('/utterance'):
+            queued.add_topic('/utterance', 'std_msgs/msg/String', profiles)
+        queued.write('/utterance', 10 + i, serialize_message(String(data=str(i))))
+        __import__('time').sleep(0.1)
+    assert queued.close() is True
+    texts = [deserialize_message(m.data, String).data for m in BagReader(tmp_path / 'bag')
+             .messages()]
+    assert texts == ['1', '2']  # the first could not be written, and said so; the rest were
+    assert len(errors) == 2 and 'No space left' in errors[0]
+
+
 def test_header_stamps_are_read_from_the_cdr_bytes():
     assert header_stamp_ns(serialize_message(_image(12_345_678_901))) == 12_345_678_901
     assert header_stamp_ns(serialize_message(_joy(7))) == 7
@@ -159,35 +204,51 @@ def _message(topic, t, msg):
     return BagMessage(topic, '', t, t, serialize_message(msg))
 
 
-def test_each_observation_carries_the_sessions_action_and_the_order_is_kept():
+def _status(stamp_ns: int, action: int) -> DiagnosticArray:
+    """env_node's env_status of step ``stamp_ns``, reached with task action ``action``."""
+    status = DiagnosticStatus(name='env_node', values=[
+        KeyValue(key='agent_step', value='1'), KeyValue(key='action', value=str(action))])
+    array = DiagnosticArray(status=[status])
+    array.header.stamp.sec, array.header.stamp.nanosec = divmod(stamp_ns, 10**9)
+    return array
+
+
+def test_each_observation_carries_what_was_executed_on_it_and_the_order_is_kept():
     messages = [
+        _message('/env_status', 0, _status(100, -1)),  # the first step: no action led here
         _message('/observation', 1, _image(100)),
         _message('/feedback', 2, String(data='x')),  # (the type does not matter here)
         _message('/action', 3, _joy(100)),
         _message('/observation', 4, _image(200)),
-        _message('/utterance', 5, String(data='get the key')),
-        _message('/observation', 6, _image(300)),
-        _message('/action', 7, _joy(200)),
-        _message('/action', 8, _joy(300, fire=0)),
-        _message('/env_status', 9, String(data='not replayed')),
+        _message('/env_status', 5, _status(200, 1)),  # executed on step 100: FIRE
+        _message('/utterance', 6, String(data='get the key')),
+        _message('/observation', 7, _image(300)),
+        _message('/action', 8, _joy(200)),
+        # Real time: the answer to 200 came late; the env executed the newest one it had (0).
+        _message('/env_status', 9, _status(300, 0)),
+        _message('/action', 10, _joy(300, fire=0)),
     ]
     items = list(replay_items(messages))
     assert [(i.topic, i.log_time) for i in items] == [
-        ('observation', 1), ('feedback', 2), ('observation', 4), ('utterance', 5),
-        ('observation', 6)]
-    taken = [deserialize_message(i.taken, Joy).buttons[0] for i in items
-             if i.topic == 'observation']
-    assert taken == [1, 1, 0]
-    assert [i.stamp for i in items if i.topic == 'observation'] == [100, 200, 300]
+        ('observation', 1), ('feedback', 2), ('observation', 4), ('utterance', 6),
+        ('observation', 7)]
+    steps = [i for i in items if i.topic == 'observation']
+    assert [i.stamp for i in steps] == [100, 200, 300]
+    assert [i.executed for i in steps] == [1, 0, None]  # the last step's is not known yet
+    answers = [deserialize_message(i.answered, Joy).buttons[0] for i in steps]
+    assert answers == [1, 1, 0]
 
 
-def test_an_observation_never_answered_is_sent_without_an_action():
-    messages = [_message('/observation', 0, _image(0))]  # the env re-sent it, say: no answer
+def test_a_step_whose_next_status_never_comes_is_sent_all_the_same():
+    messages = [_message('/observation', 0, _image(0))]  # an episode's last step, say
     for k in range(1, 12):
-        messages += [_message('/observation', k, _image(k)), _message('/action', k, _joy(k))]
+        messages += [_message('/observation', k, _image(k * 10)),
+                     _message('/env_status', k, _status(k * 10 + 1, k % 3))]
     items = list(replay_items(messages))
-    assert [i.stamp for i in items] == list(range(12))
-    assert items[0].taken is None and all(i.taken is not None for i in items[1:])
+    assert [i.stamp for i in items] == [0] + [k * 10 for k in range(1, 12)]
+    # Each status names the newest step before it (11 -> step 10, ...): step 0 has none, and
+    # goes once LOOKAHEAD_OBSERVATIONS more steps came.
+    assert [i.executed for i in items] == [None] + [k % 3 for k in range(1, 12)]
     assert LOOKAHEAD_OBSERVATIONS < 11
 
 

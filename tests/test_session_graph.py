@@ -63,7 +63,7 @@ def test_a_recorded_run_leaves_a_bag_that_rosbag2_readers_open(recorded_run):
     # launcher's monitor heard (which may miss a topic's first messages under load).
     logged = summary['learner_log']
     assert counts['/feedback_stamped'] == logged['feedback'] == summary['feedback_count']
-    assert counts['/utterance'] == logged['utterances'] >= counts['/utterance_stamped'] >= 1
+    assert counts['/utterance'] == logged['utterances'] == counts['/utterance_stamped'] >= 1
     assert counts['/feedback_logged'] == logged['feedback'] + logged['utterances']
     assert counts['/observation'] >= STEPS and counts['/action'] == counts['/observation']
     assert counts['/env_status'] > summary['steps']  # one per step, and at each episode's start
@@ -105,7 +105,20 @@ def test_the_session_replays_into_a_fresh_learner_that_then_acts(recorded_run, t
     with open(tmp_path / 'replay' / 'replay_steps.csv') as steps:
         rows = list(csv.DictReader(steps))
     assert len(rows) == summary['steps'] and all(r['replayed_action'] != '' for r in rows)
-    assert any((tmp_path / 'replay' / 'checkpoints').iterdir())
+    # It learned every feedback on the action the session's agent executed on that step.
+    from attention_bringup.replay.session import replay_items
+    from session_bag.reader import BagReader
+    from tamer_node.persistence import load_checkpoint
+    executed = {item.stamp: item.executed for item in replay_items(
+        BagReader(run_dir / 'bag').messages()) if item.topic == 'observation'}
+    buffer = load_checkpoint(tmp_path / 'replay')['buffer']
+    count = min(int(buffer['added']), int(buffer['capacity']))
+    learned = list(zip(buffer['columns']['stamps'][:count].tolist(),
+                       buffer['columns']['actions'][:count].tolist()))
+    assert len(learned) >= 0.5 * bag['/feedback_stamped']
+    assert all(executed[stamp] == action for stamp, action in learned)
+    disagreed = sum(r['agree'] == '0' for r in rows)
+    assert int(summary['metrics']['act/taken_differs']) == disagreed > 0
     assert (tmp_path / 'replay' / 'learning_curve.png').read_bytes()[:4] == b'\x89PNG'
     assert 'greedy actions agree' in result.stdout
 

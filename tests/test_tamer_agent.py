@@ -659,7 +659,9 @@ def test_feedback_is_learned_on_the_action_taken_not_the_agent_s_answer(agents, 
     with pytest.raises(BadInput):
         agent.on_action_taken(stamp(3), agent.task.num_actions)
     assert agent.metrics()['drop/action_taken'] == 1
-    # The journal keeps what was taken, so a resumed learner learns the same.
+    # The journal keeps what was taken, so a resumed learner learns the same (from the log and
+    # the journal alone: the checkpoint is taken away).
     agent.close()
+    (tmp_path / 'taken' / CHECKPOINT_DIR / CHECKPOINT_FILE).unlink()
     resumed = agents(tmp_path / 'taken', resume=True)
     assert {s.stamp: s.action for s in resumed.buffer.samples()} == samples

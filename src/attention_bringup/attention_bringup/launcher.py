@@ -29,7 +29,7 @@ from attention_bringup.gallery import GalleryCollector
 from attention_bringup.graph import NODES
 from attention_bringup.params import ParamsFileError
 from attention_bringup.plan import (
-    bag_dir_name, build_plan, chosen_domain, CONSOLE, Continuation, LaunchPlan, parse_options,
+    build_plan, chosen_domain, CONSOLE, Continuation, LaunchPlan, parse_options,
     RECORDER, resumed_options, save_options)
 from attention_bringup.processes import (
     cpu_seconds, exit_description, log_tail, NodeGroup, resident_memory_kb)
@@ -42,6 +42,7 @@ from attention_common.run_files import (
     of_session, OPTIONS_FILE, OVERRIDES_FILE, PARAMS_FILE, PIDS_FILE, PROGRESS_FILE, SUMMARY_FILE)
 from attention_tasks.task import load_task
 from session_bag import info as bag_info
+from session_bag.reader import ends_whole, storage_path
 from session_bag.repair import repair
 
 STARTUP_TIMEOUT_S = 300.0
@@ -403,16 +404,16 @@ class Launcher:
         """Return what the session's bag holds; repair it first if its recorder was killed."""
         if not self.plan.options.records:
             return None
-        bag_dir = self.plan.run_dir / bag_dir_name(self.plan.continuation.session)
+        bag_dir = self.plan.bag_dir
         try:
             repaired = None
-            if exit_codes.get(RECORDER) != 0:
+            if exit_codes.get(RECORDER) != 0 or not ends_whole(storage_path(bag_dir)):
                 repaired = repair(bag_dir)
                 self.err.write(f'attention_train: {RECORDER} did not exit cleanly; the bag '
                                f'was repaired ({repaired.messages} messages kept)\n')
             summary = bag_info.bag_summary(bag_dir)
-        except (OSError, ValueError) as error:
-            return {'dir': str(bag_dir), 'error': str(error)}
+        except Exception as error:  # noqa: B902 - the run folder is written whatever the bag
+            return {'dir': str(bag_dir), 'error': f'{type(error).__name__}: {error}'}
         summary['dir'] = bag_dir.name  # relative to the run folder, like the other files
         summary['repaired'] = repaired is not None
         return summary

@@ -261,6 +261,8 @@ class LaunchPlan:
     """Per node: the merged parameters of all files (what the files set, not the defaults)."""
     commands: List[NodeCommand]
     continuation: Continuation = field(default_factory=Continuation)
+    bag_dir: Optional[Path] = None
+    """The session's bag folder (``--record``), a new one: a bag is never written over."""
 
     def overrides_text(self) -> str:
         return dump_params(self.overrides, header='Set by attention_train from its options.')
@@ -324,6 +326,21 @@ def bag_dir_name(session: int = 1) -> str:
     return BAG_DIR if session == 1 else f'{BAG_DIR}.session{session}'
 
 
+def free_bag_dir(run_dir: Path, session: int) -> Path:
+    """
+    Return the session's bag folder: ``bag_dir_name(session)``, or ``.2``, ``.3``, ... after it.
+
+    A start that never got to a step leaves a bag and no progress row, so the next one gets
+    the same session number; its bag goes beside that one, never over it.
+    """
+    first = path = Path(run_dir) / bag_dir_name(session)
+    attempt = 1
+    while path.exists() and any(path.iterdir()):
+        attempt += 1
+        path = first.with_name(f'{first.name}.{attempt}')
+    return path
+
+
 def default_run_dir(cwd: Path, condition: str, seed: int, now: datetime.datetime,
                     task: str = DEFAULT_TASK) -> Path:
     named = '' if task == DEFAULT_TASK else f'{task}-'
@@ -367,9 +384,9 @@ def build_plan(options: LaunchOptions, bin_dir: Path, cwd: Path,
         for path in all_files:
             argv += ['--params-file', str(path)]
         commands.append(NodeCommand(node, argv, run_dir / node_log(node, continuation.session)))
-    if options.records:  # not a node of the study's graph: its own parameters only
-        argv = [str(bin_dir / RECORDER), '--ros-args', '-p',
-                f'bag_dir:={run_dir / bag_dir_name(continuation.session)}', '-p',
+    bag_dir = free_bag_dir(run_dir, continuation.session) if options.records else None
+    if bag_dir is not None:  # not a node of the study's graph: its own parameters only
+        argv = [str(bin_dir / RECORDER), '--ros-args', '-p', f'bag_dir:={bag_dir}', '-p',
                 f'run_dir:={run_dir}']
         commands.append(NodeCommand(RECORDER, argv,
                                     run_dir / node_log(RECORDER, continuation.session)))
@@ -380,4 +397,4 @@ def build_plan(options: LaunchOptions, bin_dir: Path, cwd: Path,
         commands.append(NodeCommand(CONSOLE, argv, log))
     return LaunchPlan(options=options, run_dir=run_dir, seed=seed, params_files=all_files,
                       overrides=overrides, effective=effective, commands=commands,
-                      continuation=continuation)
+                      continuation=continuation, bag_dir=bag_dir)

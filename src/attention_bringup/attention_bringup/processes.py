@@ -26,6 +26,9 @@ _DIE_WITH_PARENT_SHIM = (
     'sys.exit(1) if os.getppid() != int(sys.argv[1]) else os.execv(sys.argv[2], sys.argv[2:])\n'
 )
 
+LAST_STOP_S = 10.0
+"""At least this long for the nodes stopped last (``NodeGroup.stop(last=...)``) to exit."""
+
 
 def dying_with_parent(argv: List[str]) -> List[str]:
     """Return a command line that runs ``argv`` and gets SIGTERM when this process dies."""
@@ -158,8 +161,10 @@ class NodeGroup:
         second Ctrl-C) cuts the SIGINT wait short.
         """
         end = time.monotonic() + sigint_timeout
-        for group in ([n for n in self.running() if n.name not in last],
-                      [n for n in self.running() if n.name in last]):
+        for index, group in enumerate(([n for n in self.running() if n.name not in last],
+                                       [n for n in self.running() if n.name in last])):
+            if index:  # the last ones get a deadline of their own
+                end = max(end, time.monotonic() + min(sigint_timeout, LAST_STOP_S))
             for node in group:
                 node.signal(signal.SIGINT)
             while (any(n.poll() is None for n in group) and time.monotonic() < end

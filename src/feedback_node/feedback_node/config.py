@@ -40,10 +40,10 @@ class FeedbackConfig(TrainerConfig):
     matched subscribers: a volatile topic gives a message only to readers matched when it is
     sent (attention_train sets 2: the learner and its monitor)."""
     wait_utterance_subscribers: int = 0
-    """Plain utterances are held likewise (in order) until their topic has this many matched
-    subscribers besides this node (0: not held; attention_train sets 2, saliency_node and
-    tamer_node, 3 when it records a bag), so the first words, said at the first step, reach
-    the learner's log and the bag; ``utterance_stamped`` is never held."""
+    """Utterances are held likewise (in order) until ``utterance`` and ``utterance_stamped``
+    each have this many matched subscribers besides this node (0: not held; attention_train
+    sets 2: the saliency node and the learner, the saliency node and the launcher; 3 when it
+    records a bag), so the first words, said at the first step, reach every listener."""
     summary_period: float = 30.0
     """Wall seconds between the log lines of counts (when they changed)."""
 

@@ -82,7 +82,7 @@ class FeedbackNode(Node):
         steady = Clock(clock_type=ClockType.STEADY_TIME)
         self.create_timer(config.summary_period, self._log_summary, clock=steady)
         self._unsent = collections.deque(maxlen=HELD_FEEDBACK)  # until the learner is matched
-        self._unsaid = collections.deque(maxlen=HELD_FEEDBACK)  # plain utterances, likewise
+        self._unsaid = collections.deque(maxlen=HELD_FEEDBACK)  # utterances, likewise
         self.create_timer(HELD_CHECK_S, self._send_held, clock=steady)
         self._last_summary = None
         self.get_logger().info(f'feedback_node ready: {self._mode_text()}')
@@ -157,17 +157,21 @@ class FeedbackNode(Node):
         """
         Publish what is held once enough readers are matched.
 
-        Feedback once ``wait_feedback_subscribers`` readers are matched, plain utterances once
-        ``wait_utterance_subscribers`` are (besides this node's own); ``utterance_stamped``,
-        which the saliency node makes its images from, is never held.
+        Feedback once ``wait_feedback_subscribers`` readers are matched, utterances (stamped
+        and plain, together) once each topic has ``wait_utterance_subscribers`` (this node's
+        own reader not counted).
 
         The topics are volatile: a message published before a reader matched never reaches it
         (a 300-step run can end before discovery is done: once the learner, once the launcher's
         monitor heard none of 300), so judgements wait here instead.
         """
-        if self._unsaid and self._readers(self._utterance_pub) >= self._wait_listeners:
+        listeners = min(self._readers(self._utterance_pub),
+                        self._readers(self._utterance_stamped_pub))
+        if self._unsaid and listeners >= self._wait_listeners:
             while self._unsaid:
-                self._utterance_pub.publish(self._unsaid.popleft())
+                stamped_utterance, plain = self._unsaid.popleft()
+                self._utterance_stamped_pub.publish(stamped_utterance)
+                self._utterance_pub.publish(plain)
         stamped = not (self._kind == 'teacher' and self._config.delayed)
         publisher = self._feedback_stamped_pub if stamped else self._feedback_pub
         if publisher.get_subscription_count() < self._wait_subscribers:
@@ -222,8 +226,7 @@ class FeedbackNode(Node):
                     KeyValue(key='sentence_of', value=str(utterance.sentence_of))])
         stamped = DiagnosticArray(status=[status])
         stamped.header.stamp = ns_to_stamp(utterance.stamp_ns)
-        self._utterance_stamped_pub.publish(stamped)  # the saliency node's, at once as ever
-        self._unsaid.append(String(data=utterance.text))  # the plain copy the learner logs
+        self._unsaid.append((stamped, String(data=utterance.text)))
         self._send_held()
         self._counts['utterances'] += 1
         self.get_logger().debug(f'said at {utterance.stamp_ns / NS_PER_S:.2f} s: '

@@ -121,8 +121,9 @@ class RecorderNode(Node):
         if queued is not None and not queued.writer.closed:
             backlog = queued.backlog
             if not queued.close():
-                self.get_logger().error(f'the bag writer did not finish its {backlog} queued '
-                                        'messages in time; the bag may be cut short')
+                self.get_logger().error(f'the bag was not closed whole ({backlog} messages were '
+                                        'queued at the stop); attention_bag repair makes it '
+                                        'readable by every rosbag2 reader')
             writer = queued.writer
             self.get_logger().info(f'bag closed: {writer.message_count} messages in '
                                    f'{writer.bag_dir} {json.dumps(writer.counts)}')

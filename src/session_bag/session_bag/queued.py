@@ -27,6 +27,7 @@ class QueuedWriter:
         self._queue: 'queue.SimpleQueue' = queue.SimpleQueue()
         self._topics = set()
         self.errors = 0
+        self._close_failed = False
         self._thread = threading.Thread(target=self._run, name='bag_writer', daemon=True)
         self._thread.start()
 
@@ -47,10 +48,10 @@ class QueuedWriter:
         return self._queue.qsize()
 
     def close(self, timeout_s: float = 30.0) -> bool:
-        """Write what is queued, close the bag; False if the thread did not end in time."""
+        """Write what is queued, close the bag; False unless the bag is closed whole."""
         self._queue.put(('close',))
         self._thread.join(timeout_s)
-        return not self._thread.is_alive()
+        return not self._thread.is_alive() and self.writer.closed and not self._close_failed
 
     def _run(self) -> None:
         next_flush = time.monotonic() + self.flush_period_s
@@ -66,19 +67,29 @@ class QueuedWriter:
             if time.monotonic() >= next_flush:
                 self._safely(self.writer.flush, 'the bag could not be flushed')
                 next_flush = time.monotonic() + self.flush_period_s
-        self._safely(self.writer.close, 'the bag could not be closed')
+        if not self._safely(self.writer.close, 'the bag could not be closed'):
+            self._close_failed = True
 
     def _apply(self, item: tuple) -> None:
         if item[0] == 'topic':
-            self._safely(lambda: self.writer.add_topic(*item[1:]),
-                         f'topic {item[1]} could not be added')
-        else:
+            if not self._safely(lambda: self.writer.add_topic(*item[1:]),
+                                f'topic {item[1]} could not be added'):
+                self._topics.discard(item[1])  # its next message asks again
+        elif self.writer.has_topic(item[1]):
             self._safely(lambda: self.writer.write(*item[1:]),
                          f'{item[1]}: a message could not be written')
+        else:
+            self.errors += 1
+            self._on_error(f'{item[1]}: a message could not be written (its channel could not '
+                           f'be added; {self.errors} errors so far)')
 
-    def _safely(self, action: Callable[[], None], what: str) -> None:
+    def _safely(self, action: Callable[[], None], what: str) -> bool:
+        """Run ``action``; on any error say so, count it, go on (the thread must not die)."""
         try:
             action()
-        except (OSError, ValueError) as error:
+            return True
+        except Exception as error:  # noqa: B902 - a full disk, a bad message: never the thread
             self.errors += 1
-            self._on_error(f'{what} ({error}; {self.errors} errors so far)')
+            self._on_error(f'{what} ({type(error).__name__}: {error}; {self.errors} errors '
+                           'so far)')
+            return False

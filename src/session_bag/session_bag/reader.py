@@ -10,7 +10,6 @@ they were; ``rclpy.serialization.deserialize_message`` opens the ones a program 
 from pathlib import Path
 from typing import Dict, Iterator, NamedTuple, Optional
 
-from mcap.exceptions import McapError
 from mcap.records import Channel, Footer, Message, Schema
 from mcap.stream_reader import StreamReader
 from session_bag import metadata
@@ -32,6 +31,22 @@ class BagTopic(NamedTuple):
     type_name: str
     metadata: Dict[str, str]
     """The channel's metadata: ``offered_qos_profiles``, ``topic_type_hash``."""
+
+
+MCAP_MAGIC = b'\x89MCAP0\r\n'
+
+
+def ends_whole(path: Path) -> bool:
+    """Tell cheaply whether an MCAP file ends as a finished one does (with the magic)."""
+    try:
+        with open(path, 'rb') as stream:
+            stream.seek(0, 2)
+            if stream.tell() < 2 * len(MCAP_MAGIC):
+                return False
+            stream.seek(-len(MCAP_MAGIC), 2)
+            return stream.read() == MCAP_MAGIC
+    except OSError:
+        return False
 
 
 def storage_path(bag_dir: Path) -> Path:
@@ -100,7 +115,9 @@ class BagReader:
                                          bytes(record.data))
                     elif isinstance(record, Footer):
                         self.complete = True
-            except (McapError, EOFError, KeyError, ValueError) as error:
+            except Exception as error:  # noqa: B902 - a cut or torn file ends the reading
+                # (McapError, EOFError, struct.error half-way through a field, a torn chunk's
+                # zstd or lz4 error, KeyError for a record of an unknown channel)
                 self.problem = f'{type(error).__name__}: {error}' if str(error) else (
                     type(error).__name__)
 

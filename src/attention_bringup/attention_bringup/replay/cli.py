@@ -40,6 +40,7 @@ from attention_bringup.replay.plan import (
 from attention_bringup.replay.player import ReplayPlayer, sleep_until, task_action_of_bytes
 from attention_bringup.replay.session import Agreement, RECEIPTED, replay_items
 from attention_common import topics
+from attention_common.dds_memory import use_freed_payloads
 from attention_common.isolation import apply_to_this_process, isolated_environ, reserved_domain
 from attention_common.run_files import LEARNING_CURVE_FILE, LOGS_DIR, SUMMARY_FILE
 from attention_tasks.task import load_task
@@ -66,7 +67,7 @@ class Replay:
         self.interrupted = threading.Event()
         self.agreement = Agreement()
         self.counts = {}
-        self.session_receipts = {}  # the session's feedback seq -> its stamp (feedback_logged)
+        self.session_receipts = []  # the session's feedback stamps, in logged order
 
     def _say(self, text: str) -> None:
         if not self.plan.options.quiet:
@@ -97,6 +98,7 @@ class Replay:
         from attention_common.executors import make_executor
 
         apply_to_this_process(self.domain_id)
+        use_freed_payloads()  # the graph's Fast DDS profile, as every node of it has
         context = Context()
         rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)
         player = ReplayPlayer(self.task, context=context)
@@ -195,10 +197,12 @@ class Replay:
         return 'completed'
 
     def _step(self, player: ReplayPlayer, item) -> None:
-        session = None
-        if item.taken is not None:
-            session = task_action_of_bytes(item.taken, self.task)
-            player.send(topics.ACTION_TAKEN, item.taken)
+        """Send one step: what the world executed on it, then its observation; await the answer."""
+        session = item.executed
+        if session is None and item.answered is not None:  # (a bag without env_status)
+            session = task_action_of_bytes(item.answered, self.task)
+        if session is not None:
+            player.send_taken(item.stamp, session)
         player.send(topics.OBSERVATION, item.data)
         player.wait_answer(item.stamp, ANSWER_TIMEOUT_S)
         self.agreement.add(item.stamp, session, player.answer(item.stamp))
@@ -213,8 +217,9 @@ class Replay:
                     values = {kv.key: kv.value for kv in status.values}
                     if status.name == 'feedback' and 'seq' in values:
                         stamp = values.get('stamp_ns')
-                        self.session_receipts[int(values['seq'])] = (
-                            int(stamp) if stamp not in (None, '', 'None') else None)
+                        self.session_receipts.append(
+                            (int(values['seq']),
+                             int(stamp) if stamp not in (None, '', 'None') else None))
             yield message
 
     def _finish(self, status, exit_codes, player, wall_s) -> int:
@@ -224,8 +229,11 @@ class Replay:
             writer = csv.DictWriter(file, fieldnames=list(rows[0]) if rows else ['step'])
             writer.writeheader()
             writer.writerows(rows)
-        same = [seq for seq, stamp in player.receipt_stamps.items()
-                if seq in self.session_receipts and self.session_receipts[seq] == stamp]
+        # The k-th feedback each learner logged (a resumed session's seq does not start at 1).
+        session = [stamp for _, stamp in sorted(self.session_receipts)]
+        replayed = [stamp for _, stamp in sorted(player.receipt_stamps.items())]
+        compared = list(zip(session, replayed))
+        same = [1 for a, b in compared if a == b]
         summary = {
             'kind': 'replay',
             'status': status,
@@ -240,9 +248,7 @@ class Replay:
             'wall_time_s': round(wall_s, 2),
             'sent': self.counts,
             'receipts': player.receipts,
-            'feedback_same_step': {'same': len(same),
-                                   'compared': len(set(player.receipt_stamps)
-                                                   & set(self.session_receipts))},
+            'feedback_same_step': {'same': len(same), 'compared': len(compared)},
             **self.agreement.summary(),
             'chance_agreement': round(1.0 / self.task.num_actions, 4),
             'metrics': dict(player.metrics),
@@ -265,6 +271,13 @@ class Replay:
         return EXIT_INTERRUPTED if status == 'interrupted' else 1
 
 
+def _status_of(run_dir: Path) -> Optional[str]:
+    try:
+        return json.loads((run_dir / SUMMARY_FILE).read_text()).get('status')
+    except (OSError, ValueError):
+        return None
+
+
 def replay_study(options, domain_id: int) -> int:
     """Replay one session once per condition into ``out/<condition>``; print the table."""
     out = Path(options.out or Path('runs') / f'{datetime.datetime.now():%Y%m%d-%H%M%S}'
@@ -272,13 +285,18 @@ def replay_study(options, domain_id: int) -> int:
     rows, code = [], 0
     for condition in CONDITIONS:
         run_dir = out / condition
-        if not (run_dir / SUMMARY_FILE).exists():  # resumable: a finished one is kept
+        if _status_of(run_dir) != 'completed':  # resumable: a completed one is kept
             plan = build_plan(dataclasses.replace(options, condition=condition,
                                                   run_dir=str(run_dir)),
                               Path(sys.executable).parent, Path.cwd())
-            if run_dir.exists():  # an interrupted one starts again
+            if run_dir.exists():  # an interrupted or failed one starts again
                 shutil.rmtree(run_dir)
-            code = max(code, Replay(plan, domain_id).run())
+            result = Replay(plan, domain_id).run()
+            if result == EXIT_INTERRUPTED:
+                sys.stderr.write(f'attention_replay: interrupted; run it again with --out {out} '
+                                 'to go on\n')
+                return result
+            code = max(code, result)
         rows.append(json.loads((run_dir / SUMMARY_FILE).read_text()))
     report.write_json(out / 'replay_study.json', rows)
     sys.stdout.write(study_table(rows) + f'\nReplay study: {out}\n')

@@ -13,7 +13,8 @@ import time
 from typing import Dict, Optional
 
 from attention_common import qos, topics
-from attention_common.joy_actions import joy_to_action, JoyActionError
+from attention_common.joy_actions import action_to_joy, joy_to_action, JoyActionError
+from attention_common.stamps import ns_to_stamp
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Vector3Stamped
 from rclpy.node import Node
@@ -102,6 +103,15 @@ class ReplayPlayer(Node):
 
     def send(self, topic: str, data: bytes) -> None:
         self.publishers_by_topic[topic].publish(data)
+
+    def send_taken(self, stamp: int, action: int) -> None:
+        """Say on ``action_taken`` that task action ``action`` was executed on step ``stamp``."""
+        joy = Joy()
+        joy.header.stamp = ns_to_stamp(stamp)
+        axes, buttons = action_to_joy(self.task.joy_action(action))
+        joy.axes = [float(a) for a in axes]
+        joy.buttons = [int(b) for b in buttons]
+        self.publishers_by_topic[topics.ACTION_TAKEN].publish(joy)
 
     def wait_answer(self, stamp: int, timeout_s: float) -> bool:
         """Wait until the learner answered ``stamp``; False after ``timeout_s``."""

@@ -3,16 +3,22 @@ A recorded session as the items a replay sends, and how its learner agrees with 
 
 What a replay sends is what the learner and the saliency node heard in the session: the
 observations, and a person's (or the trainer's) feedback and utterances, in recorded order.
-Each observation carries the action the session's agent answered it with (its ``action``
-message, found a few messages later in the bag): the replay sends it on ``action_taken`` just
-before the observation, so the new learner credits the feedback to the action it judged.
+Each observation carries the action the world executed on it (the next step's ``env_status``,
+found a few messages later in the bag; else the session learner's ``action`` answer): the
+replay sends it on ``action_taken`` just before the observation, so the new learner credits
+the feedback to the action the person saw and judged.
 """
 
 import collections
-from typing import Dict, Iterable, Iterator, List, NamedTuple, Optional
+from typing import Dict, Iterable, Iterator, List, NamedTuple, Optional, Tuple
 
 from attention_bringup.gallery import cdr_header_stamp_ns as header_stamp_ns
 from attention_common import topics
+from attention_common.stamps import stamp_to_ns
+from attention_tasks.task import NO_ACTION
+from diagnostic_msgs.msg import DiagnosticArray
+from env_node.status import STATUS_NAME as ENV_STATUS_NAME
+from rclpy.serialization import deserialize_message
 
 REPLAYED = (topics.OBSERVATION, topics.FEEDBACK, topics.FEEDBACK_STAMPED, topics.UTTERANCE,
             topics.UTTERANCE_STAMPED)
@@ -20,7 +26,8 @@ REPLAYED = (topics.OBSERVATION, topics.FEEDBACK, topics.FEEDBACK_STAMPED, topics
 RECEIPTED = (topics.FEEDBACK, topics.FEEDBACK_STAMPED, topics.UTTERANCE)
 """Topics the tamer logs one line for, with a receipt on ``feedback_logged``."""
 LOOKAHEAD_OBSERVATIONS = 8
-"""How many later observations may come before an observation's action (real time: a few)."""
+"""How many later observations may come before an observation's executed action is known (one
+in lockstep and in real time; more only where a step has none: an episode's last)."""
 
 
 def relative(topic: str) -> str:
@@ -36,47 +43,78 @@ class Item(NamedTuple):
     data: bytes
     stamp: Optional[int] = None
     """An observation's header stamp."""
-    taken: Optional[bytes] = None
-    """An observation's: the session's ``action`` message answering it (None: none found)."""
+    executed: Optional[int] = None
+    """An observation's: the task action the world executed on that step (the next step's
+    ``env_status`` says which; in real time it is the answer that was newest at the tick)."""
+    answered: Optional[bytes] = None
+    """An observation's: the session learner's ``action`` message answering it."""
+
+
+def executed_action(data: bytes) -> Optional[Tuple[int, int]]:
+    """Return (stamp, task action applied to reach that step) of an env_status, or None."""
+    message = deserialize_message(data, DiagnosticArray)
+    for status in message.status:
+        if status.name == ENV_STATUS_NAME:
+            value = next((kv.value for kv in status.values if kv.key == 'action'), None)
+            try:
+                action = int(value)
+            except (TypeError, ValueError):
+                return None
+            if action == NO_ACTION:  # a reset, the start: no agent action led here
+                return None
+            return stamp_to_ns(message.header.stamp), action
+    return None
 
 
 def replay_items(messages: Iterable) -> Iterator[Item]:
     """
     Yield the items to replay from a bag's messages (``session_bag.reader.BagMessage``).
 
-    An observation is held back until its action comes (or ``LOOKAHEAD_OBSERVATIONS`` more
-    observations came); what follows it waits behind it, so the order is kept.
+    An observation is held back until the next step's ``env_status`` says which action was
+    executed on it (or ``LOOKAHEAD_OBSERVATIONS`` more observations came: the last step of an
+    episode has none); what follows it waits behind it, so the order is kept. Its ``action``
+    answer is attached on the way.
     """
     pending: collections.deque = collections.deque()  # [Item] lists, oldest first
-    waiting: Dict[int, list] = {}  # stamp -> the pending observation still without its action
+    open_steps: Dict[int, list] = {}  # stamp -> pending observation without its executed action
+    by_stamp: Dict[int, list] = {}  # stamp -> pending observation (the first copy of a step)
     observations = 0  # in pending
 
     def release(final: bool = False) -> Iterator[Item]:
         nonlocal observations
         while pending:
-            item = pending[0][0]
+            holder = pending[0]
+            item = holder[0]
             if item.topic == topics.OBSERVATION:
-                if (not final and waiting.get(item.stamp) is pending[0]
+                if (not final and open_steps.get(item.stamp) is holder
                         and observations <= LOOKAHEAD_OBSERVATIONS):
                     return
                 observations -= 1
-                if waiting.get(item.stamp) is pending[0]:
-                    del waiting[item.stamp]
+                for index in (open_steps, by_stamp):
+                    if index.get(item.stamp) is holder:
+                        del index[item.stamp]
             yield pending.popleft()[0]
 
     for message in messages:
         topic = relative(message.topic)
-        if topic == topics.ACTION:
-            holder = waiting.pop(header_stamp_ns(message.data), None)
-            if holder is not None:
-                holder[0] = holder[0]._replace(taken=message.data)
+        if topic == topics.ENV_STATUS:
+            found = executed_action(message.data)
+            earlier = [s for s in open_steps if found and s < found[0]]
+            if earlier:  # the step this one was reached from: the newest before it
+                holder = open_steps.pop(max(earlier))
+                holder[0] = holder[0]._replace(executed=found[1])
+        elif topic == topics.ACTION:
+            holder = by_stamp.get(header_stamp_ns(message.data))
+            if holder is not None and holder[0].answered is None:
+                holder[0] = holder[0]._replace(answered=message.data)
         elif topic in REPLAYED:
             stamp = header_stamp_ns(message.data) if topic == topics.OBSERVATION else None
             holder = [Item(topic, message.log_time, message.data, stamp)]
             pending.append(holder)
             if stamp is not None:
                 observations += 1
-                waiting.setdefault(stamp, holder)  # a re-sent step: its first copy gets it
+                if stamp not in by_stamp:  # a re-sent step: its first copy is the step
+                    by_stamp[stamp] = open_steps[stamp] = holder
         yield from release()
     yield from release(final=True)
 
