@@ -38,7 +38,9 @@ def test_the_recorder_keeps_every_message_with_its_type_qos_and_the_run(
     (run_dir / 'launch_options.json').write_text(json.dumps({'condition': 'vanilla'}))
     (run_dir / 'params.yaml').write_text('tamer_node:\n  ros__parameters:\n    alpha: 0.0\n')
     recorder = _start(start_node, run_dir / 'bag', run_dir=str(run_dir))
-    images = probe.publisher(Image, 'observation', qos.FRAMES)
+    # The graph's frame writers keep 100 frames for a reader that fell behind (qos.FRAMES_WRITER;
+    # with 10, a recorder under the full test suite's load once kept 48 of 100 frames at 200 Hz).
+    images = probe.publisher(Image, 'observation', qos.FRAMES_WRITER)
     words = probe.publisher(String, 'utterance', qos.HUMAN)
     feedback = probe.publisher(Float32, 'feedback', qos.HUMAN)
     for publisher in (images, words, feedback):

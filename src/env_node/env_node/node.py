@@ -85,7 +85,7 @@ class EnvNode(Node):
         self._status_msg = DiagnosticArray(status=[self._status])
         self._clock_msg = ClockMsg()
 
-        self._obs_pub = self.create_publisher(Image, topics.OBSERVATION, qos.FRAMES)
+        self._obs_pub = self.create_publisher(Image, topics.OBSERVATION, qos.FRAMES_WRITER)
         self._position_pub = self.create_publisher(
             PointStamped, topics.AGENT_POSITION, qos.STEP_DATA)
         self._status_pub = self.create_publisher(DiagnosticArray, topics.ENV_STATUS, qos.STEP_DATA)

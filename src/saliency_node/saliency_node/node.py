@@ -78,8 +78,8 @@ class SaliencyNode(Node):
         self.counters = collections.Counter()
         self.add_on_set_parameters_callback(self._on_set_parameters)
 
-        self._saliency_pub = self.create_publisher(Image, topics.SALIENCY, qos.FRAMES)
-        self._mask_pub = self.create_publisher(Image, topics.SALIENCY_MASK, qos.FRAMES)
+        self._saliency_pub = self.create_publisher(Image, topics.SALIENCY, qos.FRAMES_WRITER)
+        self._mask_pub = self.create_publisher(Image, topics.SALIENCY_MASK, qos.FRAMES_WRITER)
         self.create_subscription(Image, topics.OBSERVATION, self._on_observation, qos.FRAMES)
         self.create_subscription(String, topics.UTTERANCE, self._on_utterance, qos.HUMAN)
         self.create_subscription(DiagnosticArray, topics.UTTERANCE_STAMPED,

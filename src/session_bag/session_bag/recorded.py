@@ -28,9 +28,9 @@ class RecordedTopic(NamedTuple):
 
 
 RECORDED = (
-    RecordedTopic(topics.OBSERVATION, Image, qos.FRAMES),
-    RecordedTopic(topics.SALIENCY, Image, qos.FRAMES),
-    RecordedTopic(topics.SALIENCY_MASK, Image, qos.FRAMES),
+    RecordedTopic(topics.OBSERVATION, Image, qos.FRAMES_WRITER),
+    RecordedTopic(topics.SALIENCY, Image, qos.FRAMES_WRITER),
+    RecordedTopic(topics.SALIENCY_MASK, Image, qos.FRAMES_WRITER),
     RecordedTopic(topics.ACTION, Joy, qos.ACTIONS),
     RecordedTopic(topics.ACTION_TAKEN, Joy, qos.ACTIONS),
     RecordedTopic(topics.FEEDBACK, Float32, qos.HUMAN),

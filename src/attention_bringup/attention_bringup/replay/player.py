@@ -23,7 +23,7 @@ from sensor_msgs.msg import Image, Joy
 from std_msgs.msg import Float32, String
 
 PUBLISHED = {
-    topics.OBSERVATION: (Image, qos.FRAMES),
+    topics.OBSERVATION: (Image, qos.FRAMES_WRITER),
     topics.FEEDBACK: (Float32, qos.HUMAN),
     topics.FEEDBACK_STAMPED: (Vector3Stamped, qos.HUMAN),
     topics.UTTERANCE: (String, qos.HUMAN),
