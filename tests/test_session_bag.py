@@ -167,32 +167,6 @@ def test_a_file_cut_anywhere_reads_up_to_the_cut_and_never_raises(tmp_path):
         assert (reader.complete is False and reader.problem) or len(stamps) == 12, cut
 
 
-def test_the_writer_thread_outlives_a_failing_write(tmp_path):
-    from session_bag.queued import QueuedWriter
-    writer = BagWriter(tmp_path / 'bag')
-    add_topic, failures = writer.add_topic, []
-
-    def add_once_failing(*args):
-        if not failures:
-            failures.append(args[0])
-            raise OSError(28, 'No space left on device')
-        add_topic(*args)
-    writer.add_topic = add_once_failing
-    errors = []
-    queued = QueuedWriter(writer, 0.05, errors.append)
-    profiles = [metadata.qos_dict(qos.HUMAN)]
-    for i in range(3):
-        if not queued.has_topic('/utterance'):
-            queued.add_topic('/utterance', 'std_msgs/msg/String', profiles)
-        queued.write('/utterance', 10 + i, serialize_message(String(data=str(i))))
-        __import__('time').sleep(0.1)
-    assert queued.close() is True
-    texts = [deserialize_message(m.data, String).data for m in BagReader(tmp_path / 'bag')
-             .messages()]
-    assert texts == ['1', '2']  # the first could not be written, and said so; the rest were
-    assert len(errors) == 2 and 'No space left' in errors[0]
-
-
 def test_header_stamps_are_read_from_the_cdr_bytes():
     assert header_stamp_ns(serialize_message(_image(12_345_678_901))) == 12_345_678_901
     assert header_stamp_ns(serialize_message(_joy(7))) == 7

@@ -24,6 +24,9 @@ class RecorderConfig:
     """Wall seconds between flushes: a killed recorder loses at most this much of the bag."""
     topics: str = ''
     """Comma-separated topics to record ('' = every topic of the graph, session_bag.recorded)."""
+    nice: int = 5
+    """Niceness the recorder adds to itself at start: the graph's nodes get the CPU first, and
+    the frame writers hold 100 frames while it catches up (0: as the other nodes)."""
 
     def validate(self) -> None:
         """Raise ValueError naming the first impossible value."""
@@ -33,6 +36,8 @@ class RecorderConfig:
         if not 0.05 <= self.flush_period_s <= 1.0:
             raise ValueError('flush_period_s must be within 0.05..1.0 s (a crash loses at most '
                              f'this much), got {self.flush_period_s}')
+        if not 0 <= self.nice <= 19:
+            raise ValueError(f'nice must be within 0..19, got {self.nice}')
         unknown = set(self.topic_names()) - {t.name for t in RECORDED}
         if unknown:
             raise ValueError(f'topics {", ".join(sorted(unknown))} are not topics of the graph '
