@@ -32,11 +32,11 @@ from attention_bringup.plan import (
     build_plan, chosen_domain, CONSOLE, Continuation, LaunchPlan, parse_options,
     RECORDER, resumed_options, save_options)
 from attention_bringup.processes import (
-    cpu_seconds, exit_description, log_tail, NodeGroup, resident_memory_kb)
+    cpu_seconds, exit_description, log_tail, node_environ, NodeGroup, resident_memory_kb)
 from attention_bringup.progress import format_bar, ProgressTracker
 from attention_common.dds_memory import use_freed_payloads
 from attention_common.executors import make_executor
-from attention_common.isolation import apply_to_this_process, isolated_environ, reserved_domain
+from attention_common.isolation import apply_to_this_process, reserved_domain
 from attention_common.run_files import (
     CHECKPOINT_DIR, FEEDBACK_LOG, GALLERY_FILE, LEARNING_CURVE_FILE, LOGS_DIR, METRICS_CSV,
     of_session, OPTIONS_FILE, OVERRIDES_FILE, PARAMS_FILE, PIDS_FILE, PROGRESS_FILE, SUMMARY_FILE)
@@ -88,14 +88,7 @@ class Launcher:
                             self.plan.options_dict(), 'from the parameter files, at start')
 
     def _node_environ(self) -> dict:
-        env = isolated_environ(self.domain_id)
-        env.update({
-            'PYTHONUNBUFFERED': '1',
-            'RCUTILS_COLORIZED_OUTPUT': '0',
-            'RCUTILS_LOGGING_BUFFERED_STREAM': '1',
-            'ROS_LOG_DIR': str(self.plan.run_dir / LOGS_DIR / 'ros'),
-        })
-        return env
+        return node_environ(self.domain_id, self.plan.run_dir / LOGS_DIR)
 
     def _on_signal(self, signum, frame) -> None:
         self.interrupts += 1

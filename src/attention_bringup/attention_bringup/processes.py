@@ -18,6 +18,7 @@ import time
 from typing import Dict, List, Mapping, Optional, Sequence
 
 from attention_bringup.plan import NodeCommand
+from attention_common.isolation import isolated_environ
 
 # argv: <launcher pid> <executable> <args...>. Exits if the launcher is already gone.
 _DIE_WITH_PARENT_SHIM = (
@@ -28,6 +29,18 @@ _DIE_WITH_PARENT_SHIM = (
 
 LAST_STOP_S = 10.0
 """At least this long for the nodes stopped last (``NodeGroup.stop(last=...)``) to exit."""
+
+
+def node_environ(domain_id: int, log_dir: Path) -> dict:
+    """Return the environment of a node process: the isolated domain, plain unbuffered logs."""
+    env = isolated_environ(domain_id)
+    env.update({
+        'PYTHONUNBUFFERED': '1',
+        'RCUTILS_COLORIZED_OUTPUT': '0',
+        'RCUTILS_LOGGING_BUFFERED_STREAM': '1',
+        'ROS_LOG_DIR': str(Path(log_dir) / 'ros'),
+    })
+    return env
 
 
 def dying_with_parent(argv: List[str]) -> List[str]:

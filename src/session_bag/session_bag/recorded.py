@@ -52,10 +52,3 @@ def type_name(msg_type: type) -> str:
     """Return the ROS 2 name of a message class: Image -> 'sensor_msgs/msg/Image'."""
     package = msg_type.__module__.split('.')[0]
     return f'{package}/msg/{msg_type.__name__}'
-
-
-def absolute(topic: str, namespace: str = '/') -> str:
-    """Return ``topic`` as the bag names it: 'observation' -> '/observation' (in '/')."""
-    if topic.startswith('/'):
-        return topic
-    return f'{namespace.rstrip("/")}/{topic}'

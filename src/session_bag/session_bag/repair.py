@@ -13,7 +13,7 @@ from typing import Dict, NamedTuple
 
 from mcap.writer import CompressionType, Writer
 from session_bag import metadata
-from session_bag.reader import BagReader
+from session_bag.reader import BagReader, ends_whole
 from session_bag.writer import LIBRARY
 
 
@@ -28,13 +28,14 @@ def repair(bag_dir: Path) -> Repaired:
     """Rewrite a cut-short bag whole (a complete one only gets its metadata.yaml checked)."""
     bag_dir = Path(bag_dir)
     reader = BagReader(bag_dir)
-    for _ in reader.messages():  # first pass: is it whole?
-        pass
-    if reader.complete:
-        _rewrite_metadata(bag_dir, reader)
-        return Repaired(True, sum(reader.counts.values()), dict(reader.counts), '')
+    if ends_whole(reader.path):  # only its counts are read (a whole file has its footer)
+        for _ in reader.messages():
+            pass
+        if reader.complete:
+            _rewrite_metadata(bag_dir, reader)
+            return Repaired(True, sum(reader.counts.values()), dict(reader.counts), '')
+        reader = BagReader(bag_dir)
     temporary = reader.path.with_suffix('.mcap.repairing')
-    reader = BagReader(bag_dir)
     with open(temporary, 'wb') as stream:
         writer = Writer(stream, compression=CompressionType.ZSTD)
         writer.start(profile='ros2', library=LIBRARY)

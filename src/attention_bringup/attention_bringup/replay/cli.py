@@ -33,15 +33,16 @@ from attention_bringup import report
 from attention_bringup.graph import CONDITIONS
 from attention_bringup.params import ParamsFileError
 from attention_bringup.plan import chosen_domain
-from attention_bringup.processes import exit_description, NodeGroup
+from attention_bringup.processes import exit_description, node_environ, NodeGroup
 from attention_bringup.replay.output import plot_replay, study_table, summary_lines
 from attention_bringup.replay.plan import (
     build_plan, OPTIONS_FILE, PARAMS_FILE, parse_options, ReplayPlan, STEPS_FILE)
-from attention_bringup.replay.player import ReplayPlayer, sleep_until, task_action_of_bytes
+from attention_bringup.replay.player import (
+    feedback_receipt, ReplayPlayer, sleep_until, task_action_of_bytes)
 from attention_bringup.replay.session import Agreement, RECEIPTED, replay_items
 from attention_common import topics
 from attention_common.dds_memory import use_freed_payloads
-from attention_common.isolation import apply_to_this_process, isolated_environ, reserved_domain
+from attention_common.isolation import apply_to_this_process, reserved_domain
 from attention_common.run_files import LEARNING_CURVE_FILE, LOGS_DIR, SUMMARY_FILE
 from attention_tasks.task import load_task
 from session_bag.reader import BagReader
@@ -107,10 +108,7 @@ class Replay:
         spinner = threading.Thread(target=spin_until_shutdown,
                                    args=(executor, context, self.err), daemon=True)
         spinner.start()
-        env = isolated_environ(self.domain_id)
-        env.update({'PYTHONUNBUFFERED': '1', 'RCUTILS_COLORIZED_OUTPUT': '0',
-                    'ROS_LOG_DIR': str(self.plan.run_dir / LOGS_DIR / 'ros')})
-        group = NodeGroup(env)
+        group = NodeGroup(node_environ(self.domain_id, self.plan.run_dir / LOGS_DIR))
         started = time.monotonic()
         self._say(f'Replaying {self.plan.bag_dir} into {self.plan.run_dir} (ROS domain '
                   f'{self.domain_id}); {self.plan.task}, {self.plan.condition}, seed '
@@ -137,13 +135,9 @@ class Replay:
     def _wait_ready(self, group: NodeGroup, player: ReplayPlayer) -> Optional[str]:
         deadline = time.monotonic() + STARTUP_TIMEOUT_S
         while not player.nodes_listen():
-            if self.interrupted.is_set():
-                return 'interrupted'
-            dead = group.first_exited()
-            if dead is not None:
-                self.err.write(f'attention_replay: {dead.name} died at start-up '
-                               f'({exit_description(dead.poll())}); see {dead.command.log_path}\n')
-                return 'node_failed'
+            ended = self._ended(group)
+            if ended:
+                return ended
             if time.monotonic() > deadline:
                 self.err.write(f'attention_replay: the nodes do not listen after '
                                f'{STARTUP_TIMEOUT_S:.0f} s; logs in '
@@ -151,6 +145,17 @@ class Replay:
                 return 'stalled'
             time.sleep(0.05)
         return None
+
+    def _ended(self, group: NodeGroup) -> Optional[str]:
+        """Return 'interrupted' after Ctrl-C, 'node_failed' (said) if a node died, else None."""
+        if self.interrupted.is_set():
+            return 'interrupted'
+        dead = group.first_exited()
+        if dead is None:
+            return None
+        self.err.write(f'attention_replay: {dead.name} died ({exit_description(dead.poll())}); '
+                       f'see {dead.command.log_path}\n')
+        return 'node_failed'
 
     def _send(self, group: NodeGroup, player: ReplayPlayer) -> str:
         """Send every item of the bag in order; return the run's status."""
@@ -160,13 +165,9 @@ class Replay:
         first_log = start = None
         last_line = time.monotonic()
         for item in replay_items(self._watch_session(reader.messages())):
-            if self.interrupted.is_set():
-                return 'interrupted'
-            dead = group.first_exited()
-            if dead is not None:
-                self.err.write(f'attention_replay: {dead.name} died '
-                               f'({exit_description(dead.poll())}); see {dead.command.log_path}\n')
-                return 'node_failed'
+            ended = self._ended(group)
+            if ended:
+                return ended
             if first_log is None:
                 first_log, start = item.log_time, time.monotonic()
             if not fast:
@@ -214,12 +215,9 @@ class Replay:
         for message in messages:
             if message.topic.endswith('/' + topics.FEEDBACK_LOGGED):
                 for status in deserialize_message(message.data, DiagnosticArray).status:
-                    values = {kv.key: kv.value for kv in status.values}
-                    if status.name == 'feedback' and 'seq' in values:
-                        stamp = values.get('stamp_ns')
-                        self.session_receipts.append(
-                            (int(values['seq']),
-                             int(stamp) if stamp not in (None, '', 'None') else None))
+                    receipt = feedback_receipt(status)
+                    if receipt is not None:
+                        self.session_receipts.append(receipt)
             yield message
 
     def _finish(self, status, exit_codes, player, wall_s) -> int:

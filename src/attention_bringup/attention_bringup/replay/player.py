@@ -10,7 +10,7 @@ thread and wake it.
 
 import threading
 import time
-from typing import Dict, Optional
+from typing import Dict, Optional, Tuple
 
 from attention_common import qos, topics
 from attention_common.joy_actions import action_to_joy, joy_to_action, JoyActionError
@@ -42,6 +42,15 @@ def task_action(joy: Joy, task) -> Optional[int]:
 
 def task_action_of_bytes(data: bytes, task) -> Optional[int]:
     return task_action(deserialize_message(data, Joy), task)
+
+
+def feedback_receipt(status) -> Optional[Tuple[int, Optional[int]]]:
+    """Return (seq, stamp the learner put it on) of a feedback's receipt, None for others."""
+    values = {kv.key: kv.value for kv in status.values}
+    if status.name != 'feedback' or 'seq' not in values:
+        return None
+    stamp = values.get('stamp_ns')
+    return int(values['seq']), (int(stamp) if stamp not in (None, '', 'None') else None)
 
 
 class ReplayPlayer(Node):
@@ -76,11 +85,9 @@ class ReplayPlayer(Node):
         with self._condition:
             for status in msg.status:
                 self.receipts += 1
-                if status.name == 'feedback':
-                    values = {kv.key: kv.value for kv in status.values}
-                    stamp = values.get('stamp_ns')
-                    self.receipt_stamps[int(values.get('seq', -1))] = (
-                        int(stamp) if stamp not in (None, '', 'None') else None)
+                receipt = feedback_receipt(status)
+                if receipt is not None:
+                    self.receipt_stamps[receipt[0]] = receipt[1]
             self._condition.notify_all()
 
     def _on_metrics(self, msg: DiagnosticArray) -> None:
