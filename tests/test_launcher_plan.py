@@ -10,8 +10,8 @@ from attention_bringup.gallery import cdr_header_stamp_ns, GalleryCollector
 from attention_bringup.params import (
     dump_params, load_params_file, merge_params, node_params, ParamsFileError, parse_params)
 from attention_bringup.plan import (
-    build_plan, Continuation, DEFAULT_STEPS, LaunchOptions, parse_options, REALTIME_RATE_HZ,
-    TEACHING_GREEDY_MARGIN)
+    build_plan, Continuation, DEFAULT_STEPS, LATE_FEEDBACK_LEARNER, LaunchOptions, parse_options,
+    REALTIME_RATE_HZ, TEACHING_GREEDY_MARGIN)
 from attention_bringup.progress import (
     ALIVE_STEPS, format_bar, parse_value, ProgressTracker, RECENT_ROWS, RECENT_STAMPS)
 from attention_bringup.report import ProgressWriter, read_rows_for_plot
@@ -20,6 +20,7 @@ from attention_tasks.montezuma.critical_positions import DEFAULT_RADIUS
 from feedback_node.teacher import TRAINERS
 import pytest
 from saliency_node.saliency import BLUR_RADIUS
+from tamer_node.config import TamerConfig
 
 BIN = Path('/opt/venv/bin')
 LAUNCH_FILE = (Path(__file__).resolve().parents[1] / 'src' / 'attention_bringup' / 'launch'
@@ -224,6 +225,21 @@ def test_the_thesis_trainer_is_one_option_away_and_human_like_is_named(tmp_path)
     assert (options.trainer, options.human_like) == ('thesis', True)
     with pytest.raises(SystemExit):
         parse_options(['--trainer', 'oracle'])
+
+
+def test_late_feedback_gets_credit_by_prediction_unless_asked_for_the_plain_window(tmp_path):
+    for options in ({'human_like': True}, {'synthetic': False}):
+        tamer = _plan(tmp_path, **options).effective['tamer_node']
+        assert (tamer['credit'], tamer['credit_posterior'], tamer['keep_tied_action']) == (
+            'window', True, True)
+    for extra in ({'plain_credit': True}, {'thesis_learner': True}):
+        tamer = _plan(tmp_path, human_like=True, **extra).effective['tamer_node']
+        assert not set(LATE_FEEDBACK_LEARNER) & set(tamer)  # the config's defaults: off
+    every_step = _plan(tmp_path).effective['tamer_node']  # stamped: nothing to attribute
+    assert not set(LATE_FEEDBACK_LEARNER) & set(every_step)
+    defaults = TamerConfig()
+    assert all(getattr(defaults, name) is False for name in LATE_FEEDBACK_LEARNER)
+    assert parse_options(['--human-like', '--plain-credit']).plain_credit
 
 
 def test_seed_of_the_run_dir_comes_from_the_files(tmp_path):

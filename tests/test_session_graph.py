@@ -21,6 +21,7 @@ TYPES = {
     '/utterance': 'std_msgs/msg/String',
     '/utterance_stamped': 'diagnostic_msgs/msg/DiagnosticArray',
     '/feedback_logged': 'diagnostic_msgs/msg/DiagnosticArray',
+    '/feedback_credit': 'diagnostic_msgs/msg/DiagnosticArray',
     '/agent_position': 'geometry_msgs/msg/PointStamped',
     '/env_status': 'diagnostic_msgs/msg/DiagnosticArray',
     '/metrics': 'diagnostic_msgs/msg/DiagnosticArray', '/clock': 'rosgraph_msgs/msg/Clock',
@@ -65,6 +66,7 @@ def test_a_recorded_run_leaves_a_bag_that_rosbag2_readers_open(recorded_run):
     assert counts['/feedback_stamped'] == logged['feedback'] == summary['feedback_count']
     assert counts['/utterance'] == logged['utterances'] == counts['/utterance_stamped'] >= 1
     assert counts['/feedback_logged'] == logged['feedback'] + logged['utterances']
+    assert 1 <= counts['/feedback_credit'] <= logged['feedback']  # one per feedback learned from
     assert counts['/observation'] >= STEPS and counts['/action'] == counts['/observation']
     assert counts['/env_status'] > summary['steps']  # one per step, and at each episode's start
     for topic, heard in summary['message_counts'].items():

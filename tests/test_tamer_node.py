@@ -309,3 +309,34 @@ def test_every_logged_feedback_and_utterance_gets_a_receipt(probe, start_node, t
     assert [line['publication_seq'] for line in lines if line['kind'] == 'feedback'] == [1, 2, 3]
     assert all(line['source_time_ns'] > 0 for line in lines)
     assert node.stop() == 0
+
+
+def test_it_says_what_it_made_of_each_step_and_each_feedback(
+        probe, start_node, tmp_path, frames):
+    """action_values: H of every action and the action taken; feedback_credit: the steps."""
+    node = start_node('tamer_node', {'run_dir': str(tmp_path / 'run'), 'credit': 'window',
+                                     'window_min_s': 0.2, 'window_max_s': 1.6,
+                                     'decision_period_s': 0.2})
+    graph = Graph(probe)
+    seen = probe.subscribe(DiagnosticArray, topics.ACTION_VALUES, qos.ACTION_VALUES)
+    credited = probe.subscribe(DiagnosticArray, topics.FEEDBACK_CREDIT, qos.HUMAN)
+    graph.wait_connected(node)
+    assert wait_until(lambda: probe.node.count_publishers(topics.FEEDBACK_CREDIT) >= 1, 30.0)
+    stamps = [(i + 1) * STEP_NS for i in range(45)]
+    actions = {stamp: graph.step(frames[i % len(frames)], stamp)
+               for i, stamp in enumerate(stamps)}
+    assert seen.wait_for(lambda msgs: len(msgs) >= len(stamps), 10.0)
+    by_stamp = {stamp_to_ns(m.header.stamp): m.status[0] for m in seen.snapshot()}
+    assert set(by_stamp) == set(stamps)
+    status = by_stamp[stamps[-1]]
+    named = {kv.key: kv.value for kv in status.values}
+    assert int(named['action']) == actions[stamps[-1]]  # the action it published
+    assert len(status.values) == 2 + 18 and status.message == list(named)[2 + int(named['action'])]
+    graph.feedback.publish(Float32(data=1.0))  # a person's plain, late feedback
+    assert credited.wait_for(lambda msgs: len(msgs) >= 1, 10.0), node.log_text()[-2000:]
+    credit = {int(kv.key): float(kv.value) for kv in credited.snapshot()[0].status[0].values
+              if kv.key not in ('seq', 'h')}
+    assert sum(credit.values()) == pytest.approx(1.0, abs=1e-3)
+    assert set(credit) <= set(stamps[::3])  # decisions of 3: the steps that chose
+    assert min(credit) >= stamps[-1] - 2 * 1_000_000_000 and len(credit) >= 5
+    assert node.stop(signal.SIGINT) == 0

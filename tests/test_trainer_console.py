@@ -2,7 +2,8 @@
 The trainer console with a real browser (headless Chromium over CDP) and the real graph.
 
 A person's key presses and words go out on ``feedback`` and ``utterance``; the page confirms a
-press only once the learner's receipt names it; pause stops the real-time env.
+press only once the learner's receipt names it; it shows the learner's H of the frame on screen
+and the steps a press was credited to; pause stops the real-time env.
 """
 
 import asyncio
@@ -16,11 +17,14 @@ import urllib.request
 
 from attention_common import qos, topics
 from attention_common.image_codec import image_to_numpy
+from attention_common.stamps import stamp_to_ns
+from attention_tasks.task import load_task
 from cdp import Browser, CHROMIUM
 from diagnostic_msgs.msg import DiagnosticArray
 from harness import wait_until
 import pytest
 from sensor_msgs.msg import Image
+from std_msgs.msg import Float32
 from trainer_console.config import ConsoleConfig
 from trainer_console.state import ConsoleState
 from trainer_console.web import ConsoleServer, Frames
@@ -40,6 +44,32 @@ def log_lines(run_dir):
     return [json.loads(line) for line in path.read_text().splitlines()] if path.exists() else []
 
 
+def credit_of(messages, seq):
+    """Return {stamp: weight} and h that the learner published on feedback_credit for seq."""
+    for msg in messages:
+        values = [(kv.key, kv.value) for kv in msg.status[0].values]
+        if dict(values).get('seq') == str(seq):
+            return ({int(k): float(v) for k, v in values if k not in ('seq', 'h')},
+                    float(dict(values)['h']), msg.status[0].message)
+    return None
+
+
+# What the page shows of the learner, read at once (one frame's view, not two).
+PAGE_VIEW = """(() => {
+  const $ = (id) => document.getElementById(id), strip = $('strip');
+  const texts = (q) => [...document.querySelectorAll(q)].map((e) => e.textContent);
+  return {
+    frame: window.frameStamp, h_stamp: $('h_panel').dataset.stamp,
+    exact: $('h_panel').dataset.exact, taken: $('taken') && $('taken').textContent,
+    names: texts('#h_bars .bar .name'), h: texts('#h_bars .bar .h'),
+    highlighted: texts('#h_bars .bar.taken .name'),
+    seq: $('credit_seq').textContent, press_h: $('credit_h').textContent,
+    mode: $('credit_mode').textContent, steps: $('credit_steps').textContent,
+    shown: $('credit_shown').textContent, sum: $('credit_sum').textContent,
+    newest: [...strip.querySelectorAll('i.newest')].map((c) => [c.dataset.stamp, c.dataset.seq]),
+  };
+})()"""
+
 needs_chromium = pytest.mark.skipif(
     CHROMIUM is None and not CI, reason='no chromium: apt-get install chromium (CI installs it)')
 
@@ -50,6 +80,10 @@ def test_a_person_teaches_from_the_browser(probe, start_node, tmp_path):
     run_dir = tmp_path / 'run'
     statuses = probe.subscribe(DiagnosticArray, topics.ENV_STATUS, qos.STEP_DATA)
     masks = probe.subscribe(Image, topics.SALIENCY_MASK, qos.FRAMES)
+    action_values = probe.subscribe(DiagnosticArray, topics.ACTION_VALUES, qos.ACTION_VALUES)
+    credits = probe.subscribe(DiagnosticArray, topics.FEEDBACK_CREDIT, qos.HUMAN)
+    someone_else = probe.publisher(Float32, topics.FEEDBACK, qos.HUMAN)
+    # Window credit: a plain press (no stamp) is credited to the steps 0.2-4 s before it.
     tamer = start_node('tamer_node', {'run_dir': str(run_dir), 'credit': 'window',
                                       'metrics_period_s': 0.3})
     start_node('saliency_node', {})
@@ -90,13 +124,57 @@ def test_a_person_teaches_from_the_browser(probe, start_node, tmp_path):
             assert await page.wait_for(
                 "document.getElementById('saliency').naturalWidth === 160")
             assert await page.evaluate("document.getElementById('given').textContent") == '7'
+            # One more '+' once the strip holds 6 s of steps (the learner has a whole 4 s
+            # window of them), then pause: the frame on screen and its strip stand still.
+            assert await page.wait_for(
+                "Number(document.getElementById('strip').dataset.steps) >= 90", 30.0)
+            # Someone else's feedback first (another publisher: its own #1 and a log seq of
+            # its own), so that our press's log seq is not its publication number.
+            someone_else.publish(Float32(data=-0.5))
+            assert wait_until(lambda: any(line.get('h') == -0.5
+                                          for line in log_lines(run_dir)), 10.0)
+            await page.evaluate("document.getElementById('utterance').blur()")  # judging again
+            await page.press('+')
+            assert await page.wait_for(
+                "document.getElementById('confirmed').textContent === '8'")
             # Pause stops the real-time env; resume starts it again.
             await page.evaluate("document.getElementById('pause').click()")
             assert await page.wait_for("document.getElementById('pause').textContent"
                                        " === 'resume'")
-            return await page.evaluate("document.getElementById('step').textContent")
+            plus = next(line for line in log_lines(run_dir)
+                        if line['kind'] == 'feedback' and line['publication_seq'] == 8)
+            assert plus['seq'] != 8 and plus['h'] == 1.0, plus
+            assert credits.wait_for(lambda m: credit_of(m, plus['seq']), 10.0)
+            assert await page.wait_for("document.getElementById('credit_note').textContent"
+                                       ".includes('not from this page')")  # the -0.5
+            assert await page.wait_for(f"document.getElementById('credit_seq').textContent"
+                                       f" === '{plus['seq']}'"), (
+                await page.evaluate('document.body.innerText'))
+            assert await page.wait_for("document.getElementById('h_panel').dataset.exact"
+                                       " === '1'")
+            return await page.evaluate(PAGE_VIEW), plus['seq']
 
-    asyncio.run(session())
+    shown, seq = asyncio.run(session())
+    # The H panel: one bar per action of the task, the action the learner took on the frame
+    # on screen highlighted, and the H it published for that very step.
+    names = list(load_task('montezuma').action_names)
+    assert shown['names'] == names and len(names) == 18, shown
+    assert shown['h_stamp'] == shown['frame'], shown  # the H of the frame on screen
+    published = next(msg for msg in action_values.snapshot()
+                     if str(stamp_to_ns(msg.header.stamp)) == shown['h_stamp'])
+    status = published.status[0]
+    assert shown['taken'] == status.message and shown['highlighted'] == [status.message]
+    assert [float(x) for x in shown['h']] == pytest.approx(
+        [float(kv.value) for kv in status.values[2:]], abs=6e-4)
+    # The strip: that press's credit, as the learner published it for its seq.
+    weights, h, mode = credit_of(credits.snapshot(), seq)
+    assert (h, mode, float(shown['press_h'])) == (1.0, 'window', 1.0), shown
+    assert int(shown['steps']) == len(weights)
+    assert float(shown['sum']) == pytest.approx(sum(weights.values()), abs=1.5e-3)
+    assert 0.9 <= sum(weights.values()) <= 1.0 + 1e-4  # a whole window of steps
+    cells = [int(stamp) for stamp, cell_seq in shown['newest'] if cell_seq == str(seq)]
+    assert cells and len(cells) == len(shown['newest']) == int(shown['shown']), shown
+    assert set(cells) <= set(weights), shown  # coloured: only the steps credited
     assert env.wait_for_log('paused', 10.0)
     count = len(statuses.snapshot())
     assert not statuses.wait_count(count + 3, 1.5)  # no steps while paused
@@ -104,7 +182,8 @@ def test_a_person_teaches_from_the_browser(probe, start_node, tmp_path):
     feedback = [line for line in lines if line['kind'] == 'feedback']
     assert [(line['h'], line['source'], line['publication_seq']) for line in feedback] == [
         (1.0, 'plain', 1), (1.0, 'plain', 2), (1.0, 'plain', 3), (1.0, 'plain', 4),
-        (1.0, 'plain', 5), (1.0, 'plain', 6), (-1.0, 'plain', 7)]
+        (1.0, 'plain', 5), (1.0, 'plain', 6), (-1.0, 'plain', 7),
+        (-0.5, 'plain', 1), (1.0, 'plain', 8)]  # someone else's #1, then our #8
     # The utterance made saliency images whose masks keep something (the ladders, the agent).
     assert any(image_to_numpy(mask).any() for mask in masks.snapshot())
     assert [line['text'] for line in lines if line['kind'] == 'utterance'] == [

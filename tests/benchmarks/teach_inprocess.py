@@ -38,7 +38,7 @@ def parse_value(text: str):
 
 
 def run_trial(seed: int, steps: int, human_like: bool, overrides: dict, pace: float,
-              workdir: Path, table: str = '') -> dict:
+              workdir: Path, table: str = '', knobs: dict = None) -> dict:
     from attention_tasks.montezuma.env import EnvConfig, MontezumaEnv
     from feedback_node.action_effects import EffectTable, STRICT
     from feedback_node.human_like import HUMAN_LIKE_SETTING
@@ -47,15 +47,16 @@ def run_trial(seed: int, steps: int, human_like: bool, overrides: dict, pace: fl
     from tamer_node.config import TamerConfig
 
     share_the_cpu()
-    knobs = vars(HUMAN_LIKE_SETTING) if human_like else {}
+    knobs = dict(vars(HUMAN_LIKE_SETTING) if human_like else {}, **(knobs or {}))
     if table == 'strict':  # +1 only for the expert's very action, never silent
         effects = EffectTable({'': STRICT}, {}, ())
     else:
         effects = EffectTable.load(Path(table)) if table else None
     teacher = Teacher(TeacherConfig(utterance_interval=-1.0, seed=seed, **knobs), effects)
     from attention_bringup.plan import HUMAN_LIKE_WINDOW_S
-    config = {'seed': seed, 'alpha': 0.0, 'credit': 'window' if human_like else 'step'}
-    if human_like:  # as attention_train --human-like sets it
+    late = teacher.config.delayed
+    config = {'seed': seed, 'alpha': 0.0, 'credit': 'window' if late else 'step'}
+    if late:  # as attention_train --human-like sets it
         config['window_min_s'], config['window_max_s'] = HUMAN_LIKE_WINDOW_S
     config.update(overrides)
     run_dir = workdir / f'seed{seed}'
@@ -74,6 +75,7 @@ def run_trial(seed: int, steps: int, human_like: bool, overrides: dict, pace: fl
     acted = {}       # stamp -> the agent's action
     recent = collections.deque(maxlen=120)  # the newest stamps, enough for any credit window
     purity = []      # per late feedback: (credit on steps with the judged action, on the step)
+    judged_plain = []  # per late feedback, in the order sent (its seq - 1): (stamp, action)
     credit_window = (agent.config.window_min_s, agent.config.window_max_s)
 
     def credit_check(judgement, now_ns) -> None:
@@ -83,6 +85,9 @@ def run_trial(seed: int, steps: int, human_like: bool, overrides: dict, pace: fl
             same = sum(w for s, w in credit.items() if acted[s] == judgement.action)
             purity.append((same / total, credit.get(judgement.stamp_ns, 0.0) / total))
 
+    from attention_tasks.montezuma.expert import Phase
+    route = [phase for phase in Phase if phase is not Phase.AIRBORNE]
+    furthest = 0  # the furthest stage of the route the expert saw the agent in
     first_key, keys, lives_lost, had_key = None, 0, 0, False
     curve = []
     window = [0, 0]
@@ -102,11 +107,14 @@ def run_trial(seed: int, steps: int, human_like: bool, overrides: dict, pace: fl
             else:
                 agent.on_feedback(judgement.h, 'plain')
                 credit_check(judgement, newest)
+                judged_plain.append((judgement.stamp_ns, judgement.action))
         if step.state.has_key and not had_key:
             keys += 1
             first_key = first_key or t
         had_key = step.state.has_key
         lives_lost += int(step.life_lost)
+        if teacher.expert.phase in route:
+            furthest = max(furthest, route.index(teacher.expert.phase))
         if step.done:
             step = env.reset()
             had_key = False
@@ -124,16 +132,47 @@ def run_trial(seed: int, steps: int, human_like: bool, overrides: dict, pace: fl
                 time.sleep(delay)
     metrics = agent.metrics()
     agent.close()
+    learned = learned_purity(agent.buffer, judged_plain, acted)
     env.close()
     n = max(len(purity), 1)
     return {'seed': seed, 'first_key_step': first_key, 'keys': keys, 'lives_lost': lives_lost,
+            'furthest_stage': furthest, 'furthest_stage_name': route[furthest].name,
             'agreement': teacher.counts['agreed'] / max(teacher.counts['judged'], 1),
             'teacher': teacher.counts, 'updates': metrics['train/updates'],
             'updates_per_step': metrics['train/updates_per_step'],
             'skipped_updates': metrics['train/skipped_updates'],
             'wall_s': time.monotonic() - started, 'curve': curve,
             'label_purity': sum(p for p, _ in purity) / n if purity else None,
-            'credit_on_judged_step': sum(q for _, q in purity) / n if purity else None}
+            'credit_on_judged_step': sum(q for _, q in purity) / n if purity else None,
+            **learned}
+
+
+def learned_purity(buffer, judged_plain, acted) -> dict:
+    """
+    Return the label purity of what the learner holds at the end.
+
+    The share of each late feedback's weight in the buffer (after any credit by prediction) on
+    steps that did the judged action, and on the judged step (the newest 10,000 samples).
+    """
+    if not judged_plain:
+        return {}
+    columns = buffer.columns
+    size = len(buffer)
+    same = collections.defaultdict(float)
+    on_step = collections.defaultdict(float)
+    total = collections.defaultdict(float)
+    for seq, stamp, weight in zip(columns['seqs'][:size], columns['stamps'][:size],
+                                  columns['weights'][:size]):
+        if not 0 < seq <= len(judged_plain):
+            continue
+        judged_stamp, judged_action = judged_plain[seq - 1]
+        total[seq] += weight
+        same[seq] += weight * (acted.get(int(stamp)) == judged_action)
+        on_step[seq] += weight * (int(stamp) == judged_stamp)
+    seqs = [q for q in total if total[q] > 0]
+    return {'learned_purity': float(sum(same[q] / total[q] for q in seqs) / max(len(seqs), 1)),
+            'learned_on_judged_step': float(
+                sum(on_step[q] / total[q] for q in seqs) / max(len(seqs), 1))}
 
 
 def main(argv=None) -> int:
@@ -141,6 +180,9 @@ def main(argv=None) -> int:
     parser.add_argument('--seeds', type=int, nargs='+', default=[100])
     parser.add_argument('--steps', type=int, default=10000)
     parser.add_argument('--human-like', action='store_true')
+    parser.add_argument('--knob', action='append', default=[], metavar='NAME=VALUE',
+                        help='a human-like knob of the teacher over --human-like, e.g. '
+                             'feedback_delay_max=0 (no delay: stamped feedback)')
     parser.add_argument('--set', action='append', default=[], metavar='NAME=VALUE',
                         help='a TamerConfig field (repeatable)')
     parser.add_argument('--pace', type=float, default=100.0, help='steps/s cap (0: none)')
@@ -162,7 +204,8 @@ def main(argv=None) -> int:
     with tempfile.TemporaryDirectory() as workdir:
         for seed in args.seeds:
             result = run_trial(seed, args.steps, args.human_like, overrides, args.pace,
-                               Path(workdir), args.table)
+                               Path(workdir), args.table,
+                               {k.split('=', 1)[0]: float(k.split('=', 1)[1]) for k in args.knob})
             results.append(result)
             print(json.dumps({k: v for k, v in result.items() if k != 'curve'}), flush=True)
             print('  agreement per 500 steps:',

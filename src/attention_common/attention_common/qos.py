@@ -52,6 +52,9 @@ overwritten (a depth of 100 lost 9,534 of 10,000 feedback sent at once)."""
 METRICS = _reliable(10)
 """metrics."""
 
+ACTION_VALUES = _reliable(10)
+"""action_values: a viewer's; one per step, the newest matter."""
+
 CLOCK = _reliable(1)
 """/clock publisher (rclpy's time source subscribes best-effort, depth 1)."""
 

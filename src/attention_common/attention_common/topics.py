@@ -26,3 +26,9 @@ METRICS = 'metrics'                  # diagnostic_msgs/DiagnosticArray, learner 
 # diagnostic_msgs/DiagnosticArray, one per feedback or utterance line the learner logged (the
 # trainer console's receipt: it names the message by its publisher's sequence number)
 FEEDBACK_LOGGED = 'feedback_logged'
+# diagnostic_msgs/DiagnosticArray, one per step the learner acted on (only while someone listens):
+# header = the step, the action taken and H for each action (what the person sees it think)
+ACTION_VALUES = 'action_values'
+# diagnostic_msgs/DiagnosticArray, one per feedback learned from: its seq and the steps its
+# credit went to, with their weights (the console's strip under the frame)
+FEEDBACK_CREDIT = 'feedback_credit'

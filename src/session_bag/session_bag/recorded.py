@@ -38,6 +38,7 @@ RECORDED = (
     RecordedTopic(topics.UTTERANCE, String, qos.HUMAN),
     RecordedTopic(topics.UTTERANCE_STAMPED, DiagnosticArray, qos.HUMAN),
     RecordedTopic(topics.FEEDBACK_LOGGED, DiagnosticArray, qos.HUMAN),
+    RecordedTopic(topics.FEEDBACK_CREDIT, DiagnosticArray, qos.HUMAN),
     RecordedTopic(topics.AGENT_POSITION, PointStamped, qos.STEP_DATA),
     RecordedTopic(topics.ENV_STATUS, DiagnosticArray, qos.STEP_DATA),
     RecordedTopic(topics.METRICS, DiagnosticArray, qos.METRICS),

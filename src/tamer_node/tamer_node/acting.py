@@ -21,7 +21,7 @@ from attention_common.stamps import NS_PER_S, StampGuard
 from attention_tasks.task import load_task
 import numpy as np
 from tamer_node.config import TamerConfig
-from tamer_node.history import StepHistory
+from tamer_node.history import holds, StepHistory
 from tamer_node.model import HModel, preprocess, to_input
 from tamer_node.persistence import (
     KIND_ACTION, KIND_OBSERVATION, KIND_SALIENCY, KIND_TAKEN, StepJournal)
@@ -65,11 +65,15 @@ class ActingModel:
     every action but UP (graph trial, seed 1006).
     """
 
-    def __init__(self, model: HModel, greedy_margin: float = 0.0, seed: int = 0):
+    def __init__(self, model: HModel, greedy_margin: float = 0.0, seed: int = 0,
+                 keep_tied: bool = False):
         self.model = copy.deepcopy(model).eval()
         self.model.requires_grad_(False)
         self.version = 0
         self.greedy_margin = float(greedy_margin)
+        self.keep_tied = keep_tied
+        """A tie that includes the previous action keeps it (with ``greedy_margin`` > 0)."""
+        self.previous: Optional[int] = None
         self._rng = np.random.default_rng(seed)
 
     def refresh(self, slot: SnapshotSlot) -> None:
@@ -91,7 +95,10 @@ class ActingModel:
             return int(torch.argmax(h))
         clipped = h.clamp(-FEEDBACK_RANGE, FEEDBACK_RANGE)  # beyond: extrapolation
         tied = torch.nonzero(clipped >= clipped.max() - self.greedy_margin).flatten()
-        return int(tied[self._rng.integers(len(tied))])
+        if self.keep_tied and self.previous is not None and bool((tied == self.previous).any()):
+            return self.previous
+        self.previous = int(tied[self._rng.integers(len(tied))])
+        return self.previous
 
     def greedy(self, image: torch.Tensor) -> int:
         """argmax_a H(s, a): the greedy policy (``choose``)."""
@@ -104,8 +111,12 @@ class ActingModel:
 
     def greedy_on_features(self, features: torch.Tensor) -> int:
         """``greedy`` from the image's features (``features``): the same action."""
+        return self.choose(self.values_on_features(features))
+
+    def values_on_features(self, features: torch.Tensor) -> torch.Tensor:
+        """H(s, .) from the image's features: (actions,) float32."""
         with torch.no_grad():
-            return self.choose(self.model.from_features(features.unsqueeze(0))[0])
+            return self.model.from_features(features.unsqueeze(0))[0]
 
 
 class ActingPath:
@@ -136,6 +147,10 @@ class ActingPath:
         """The newest observation stamp (what a plain feedback is stamped with)."""
         self.act_seconds = collections.deque(maxlen=1000)
         """The last 1000 acts' latencies."""
+        self.on_acted: Optional[Callable[[int, int, torch.Tensor], None]] = None
+        """Called on the acting thread with (stamp, action, H of every action) after each act."""
+        self._held: Optional[int] = None  # the decision being held (decision_period_s)
+        self._decision: Optional[int] = None  # the stamp of the step that chose it
 
     @property
     def session(self) -> int:
@@ -148,6 +163,7 @@ class ActingPath:
         with self._awaiting_lock:
             self._awaiting.clear()
         self.now = None
+        self._held, self._decision = None, None
 
     def on_observation(self, stamp: int, rgb: np.ndarray) -> Optional[int]:
         """Store observation ``stamp``; return the greedy action if the agent acts on it."""
@@ -268,17 +284,27 @@ class ActingPath:
         self.actor.refresh(self.slot)
         kind = self.config.input_image if image is None else 'observation'
         image = record.image(kind) if image is None else image
+        held = self._held if holds(self._decision, record.stamp,
+                                   self.config.decision_period_s) else None
         if self.actor.model.freeze_encoder:
             features = self.actor.features(image)  # encoded once: acting and learning share it
             self.history.put_features(kind, record.stamp, features)
-            action = self.actor.greedy_on_features(features)
+            values = self.actor.values_on_features(features)
         else:
-            action = self.actor.greedy(image)
-        self.history.set_action(record.stamp, action)
+            values = self.actor.predict(image)
+        action = held if held is not None else self.actor.choose(values)
+        if held is not None:
+            self.counters['act/held'] += 1
+        else:  # a new decision, held until decision_period_s has passed
+            self._held, self._decision = action, record.stamp
+        self.history.set_action(record.stamp, action,
+                                self._decision if self.config.decision_period_s > 0 else None)
         self.journal.append(KIND_ACTION, record.stamp, action)
         if record.taken is not None and record.taken != action:  # told before it answered
             self.counters['act/taken_differs'] += 1
         if started is not None:
             self.act_seconds.append(time.perf_counter() - started)
         self.counters['act/count'] += 1
+        if self.on_acted is not None:
+            self.on_acted(record.stamp, action, values)
         return action

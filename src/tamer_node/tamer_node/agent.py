@@ -103,8 +103,10 @@ class TamerAgent:
         self.task = load_task(config.task)
         model = HModel(config.head_hidden, freeze_encoder=not config.fine_tune_encoder,
                        encoder=encoder, num_actions=self.task.num_actions)
-        self.learner = Learner(model, config.learning_rate, config.alpha, config.max_grad_norm)
-        self.actor = ActingModel(model, config.greedy_margin, config.seed)
+        self.learner = Learner(model, config.learning_rate, config.alpha, config.max_grad_norm,
+                               config.credit_loss)
+        self.actor = ActingModel(model, config.greedy_margin, config.seed,
+                                 config.keep_tied_action)
         self.slot = SnapshotSlot()
         # A frozen encoder: the buffer holds each image's features (computed once, by the
         # actor for the image it acts on), so an update runs the small head only.

@@ -1,10 +1,11 @@
 """The feedback replay buffer: bounded, lock-protected, sampled into a NamedTuple of tensors."""
 
 import threading
-from typing import Iterable, List, NamedTuple, Optional, Tuple
+from typing import Callable, Iterable, List, NamedTuple, Optional, Tuple
 
 import numpy as np
 from tamer_node.model import INPUT_SHAPE
+from tamer_node.posterior import feedback_likelihood, posterior_weights
 import torch
 
 
@@ -30,6 +31,8 @@ class Sample(NamedTuple):
     session: int = 1
     """The run's session the step belongs to (stamps restart with each env): with ``stamp``,
     the step's identity in the run."""
+    prior: Optional[float] = None
+    """The credit window's weight before credit by prediction (None: ``weight`` is it)."""
 
 
 class Batch(NamedTuple):
@@ -47,14 +50,23 @@ class Batch(NamedTuple):
     """(B,) float32 feedback values."""
     weights: torch.Tensor
     """(B,) float32 credit weights."""
+    groups: Optional[torch.Tensor] = None
+    """(B,) int64: which feedback of the batch each row came from, numbered 0..G-1 (for the
+    ``mixture`` credit loss); None: rows are independent."""
+
+
+def group_ids(seqs) -> torch.Tensor:
+    """Return each row's feedback as 0..G-1 (the distinct sequence numbers, in order)."""
+    return torch.from_numpy(np.unique(np.asarray(seqs), return_inverse=True)[1].astype(np.int64))
 
 
 def collate(samples: List[Sample]) -> Batch:
-    """Stack samples into a Batch."""
+    """Stack samples into a Batch (``groups``: by the feedback each came from)."""
     if not samples:
         raise ValueError('cannot collate an empty list of samples')
     blank = torch.zeros_like(samples[0].state)
     return Batch(
+        groups=group_ids([s.seq for s in samples]),
         states=torch.stack([s.state for s in samples]),
         companions=torch.stack([blank if s.companion is None else s.companion
                                 for s in samples]),
@@ -68,7 +80,7 @@ def collate(samples: List[Sample]) -> Batch:
 # Per-sample columns of the ring (besides the two images).
 _COLUMNS = {'has_companion': np.bool_, 'actions': np.int64, 'h': np.float32,
             'weights': np.float32, 'stamps': np.int64, 'seqs': np.int64,
-            'sessions': np.int64}
+            'sessions': np.int64, 'priors': np.float32}
 
 
 class FeedbackBuffer:
@@ -109,7 +121,9 @@ class FeedbackBuffer:
                 for name, value in (('has_companion', has_companion),
                                     ('actions', sample.action), ('h', sample.h),
                                     ('weights', sample.weight), ('stamps', sample.stamp),
-                                    ('seqs', sample.seq), ('sessions', sample.session)):
+                                    ('seqs', sample.seq), ('sessions', sample.session),
+                                    ('priors', sample.weight if sample.prior is None
+                                     else sample.prior)):
                     self.columns[name][i] = value
                 self._next = (i + 1) % self.capacity
                 self._size = min(self._size + 1, self.capacity)
@@ -123,12 +137,30 @@ class FeedbackBuffer:
             rows = rng.choice(self._size, min(batch_size, self._size), replace=False)
             return self._batch(rows)
 
-    def _batch(self, rows: np.ndarray) -> Batch:
+    def sample_feedback(self, count: int, rng: np.random.Generator) -> Batch:
+        """
+        Every sample of ``min(count, feedbacks held)`` distinct feedbacks, drawn uniformly.
+
+        A feedback's samples are the steps its credit spread over; the ``mixture`` credit loss
+        needs them together. A feedback whose oldest samples the ring already overwrote keeps
+        the rest.
+        """
+        with self._lock:
+            if not self._size:
+                raise ValueError('cannot sample from an empty buffer')
+            seqs = self.columns['seqs'][:self._size]
+            distinct, inverse = np.unique(seqs, return_inverse=True)
+            chosen = rng.choice(len(distinct), min(count, len(distinct)), replace=False)
+            rows = np.flatnonzero(np.isin(inverse, chosen))
+            return self._batch(rows, groups=True)
+
+    def _batch(self, rows: np.ndarray, groups: bool = False) -> Batch:
         columns = {name: torch.from_numpy(values[rows]) for name, values in self.columns.items()}
         return Batch(states=torch.from_numpy(self.states[rows]),
                      companions=torch.from_numpy(self.companions[rows]),
                      has_companion=columns['has_companion'], actions=columns['actions'],
-                     h=columns['h'], weights=columns['weights'])
+                     h=columns['h'], weights=columns['weights'],
+                     groups=group_ids(columns['seqs'].numpy()) if groups else None)
 
     def _order(self) -> np.ndarray:
         """Return the row indices, oldest sample first."""
@@ -147,12 +179,36 @@ class FeedbackBuffer:
                     torch.from_numpy(self.companions[i].copy()) if has else None,
                     int(self.columns['actions'][i]), float(self.columns['h'][i]),
                     float(self.columns['weights'][i]), int(self.columns['stamps'][i]),
-                    int(self.columns['seqs'][i]), int(self.columns['sessions'][i])))
+                    int(self.columns['seqs'][i]), int(self.columns['sessions'][i]),
+                    float(self.columns['priors'][i])))
             return out
 
     def __len__(self) -> int:
         with self._lock:
             return self._size
+
+    def refit_weights(self, predict: Callable[[torch.Tensor, torch.Tensor], np.ndarray],
+                      noise: float, chunk: int = 2048) -> int:
+        """
+        Re-weigh every sample by credit by prediction (posterior.py) with the current H.
+
+        ``predict(states, actions)`` returns H(s, a) of a chunk of rows. Call it from the one
+        thread that adds samples (the learner's): the rows cannot change meanwhile, so H is
+        computed without the lock and only the new weights are written under it.
+        """
+        size = len(self)
+        if not size:
+            return 0
+        predicted = np.concatenate([
+            predict(torch.from_numpy(self.states[i:min(i + chunk, size)]),
+                    torch.from_numpy(self.columns['actions'][i:min(i + chunk, size)]))
+            for i in range(0, size, chunk)])
+        columns = self.columns
+        likelihood = feedback_likelihood(columns['h'][:size], predicted, noise)
+        weights = posterior_weights(columns['priors'][:size], likelihood, columns['seqs'][:size])
+        with self._lock:
+            columns['weights'][:size] = weights
+        return size
 
     def companion_fraction(self) -> float:
         """Fraction of the samples held that have a companion (saliency) image; 0 if empty."""
@@ -187,6 +243,7 @@ class FeedbackBuffer:
         states = state['states'].numpy()[-self.capacity:]
         columns = {name: values.numpy()[-self.capacity:]
                    for name, values in state['columns'].items()}
+        columns.setdefault('priors', columns['weights'])  # a checkpoint from before priors
         has = columns['has_companion']
         companions = np.zeros_like(states)
         companions[has] = state['companions'].numpy()[-int(has.sum()):] if has.any() else 0

@@ -19,7 +19,7 @@ import numpy as np
 from tamer_node.buffer import FeedbackBuffer
 from tamer_node.config import TamerConfig
 from tamer_node.events import event_from_entry, FeedbackEvent
-from tamer_node.history import other_kind, StepHistory
+from tamer_node.history import holds, other_kind, StepHistory
 from tamer_node.learner import Learner
 from tamer_node.pairing import stored_item
 from tamer_node.persistence import (
@@ -180,8 +180,14 @@ def read_run(run_dir: Path, log: Callable[[str, str], None]):
     return checkpoint, events, records, segments
 
 
-def journal_histories(records: Iterable) -> Dict[int, StepHistory]:
-    """Return the journal's steps as one unbounded StepHistory per session."""
+def journal_histories(records: Iterable,
+                      decision_period_s: float = 0.0) -> Dict[int, StepHistory]:
+    """
+    Return the journal's steps as one unbounded StepHistory per session.
+
+    With ``decision_period_s`` > 0 the acted steps of each session are grouped into decisions
+    as the acting path made them (``acting.holds``).
+    """
     sessions: Dict[int, StepHistory] = {}
     for session, kind, stamp, action, image in records:
         steps = sessions.get(session)
@@ -193,6 +199,10 @@ def journal_histories(records: Iterable) -> Dict[int, StepHistory]:
             steps.set_taken(stamp, action)
         elif action >= 0:
             steps.set_action(stamp, action)
+    if decision_period_s > 0.0:
+        for steps in sessions.values():
+            steps.mark_decisions(lambda decision, stamp: holds(decision, stamp,
+                                                               decision_period_s))
     return sessions
 
 

@@ -12,7 +12,7 @@ LEARNER_COUNTERS = (
     'train/updates', 'train/immediate_updates', 'train/minibatch_updates', 'train/l2_updates',
     'train/skipped_nonfinite', 'train/errors',
     'checkpoint/count', 'resume/replayed', 'resume/samples_without_images',
-    'feedback/other_session',
+    'feedback/other_session', 'credit/refits',
 )
 """Counted by the learner thread, read under its lock (and saved in each checkpoint)."""
 
@@ -20,7 +20,7 @@ AGENT_COUNTERS = (
     'act/count', 'act/fallback_observation', 'drop/observation', 'drop/saliency',
     'drop/observation_stamp', 'drop/saliency_stamp', 'session/restarts',
     'utterance/count', 'utterance/empty', 'utterance/too_long', 'feedback/logged',
-    'disk/feedback_log_errors', 'act/paced', 'act/paced_ms',
+    'disk/feedback_log_errors', 'act/paced', 'act/paced_ms', 'act/held',
 )
 """Counted by the acting path, the intake and the node (``TamerAgent.counters``)."""
 

@@ -10,12 +10,21 @@ import collections
 import dataclasses
 from dataclasses import dataclass
 import threading
-from typing import Dict, List, Optional
+from typing import Callable, Dict, List, Optional
 
 from tamer_node.credit import Span, spans_from_stamps
 import torch
 
 IMAGE_KINDS = ('observation', 'saliency')
+DECISION_SLACK_NS = 1_000_000
+"""Stamps are rounded to the nanosecond: 3 steps of 1/15 s are a 0.2 s decision."""
+
+
+def holds(decision: Optional[int], stamp: int, period_s: float) -> bool:
+    """Tell whether the decision made at stamp ``decision`` still holds at ``stamp``."""
+    if decision is None or period_s <= 0.0 or stamp < decision:
+        return False
+    return stamp - decision < int(round(period_s * 1e9)) - DECISION_SLACK_NS
 
 
 @dataclass
@@ -32,6 +41,9 @@ class StepRecord:
     taken: Optional[int] = None
     """The action the world executed on this step when the agent's answer was not it
     (``action_taken``: a replayed session's action); learned from instead of ``action``."""
+    decision: Optional[int] = None
+    """The stamp of the step whose choice this step's action holds (``decision_period_s``): the
+    step itself when it chose, else the first step of its decision."""
     observation_features: Optional[torch.Tensor] = None
     """(1120,) float32 frozen-encoder features of the observation, once computed."""
     saliency_features: Optional[torch.Tensor] = None
@@ -86,9 +98,20 @@ class StepHistory:
             if record is not None and record.image(kind) is not None:
                 setattr(record, f'{kind}_features', features)
 
-    def set_action(self, stamp: int, action: int) -> None:
+    def set_action(self, stamp: int, action: int, decision: Optional[int] = None) -> None:
         with self._lock:
-            self._record(stamp).action = int(action)
+            record = self._record(stamp)
+            record.action = int(action)
+            record.decision = decision
+
+    def mark_decisions(self, holds: Callable[[Optional[int], int], bool]) -> None:
+        """Group the acted steps, in stamp order, into decisions as the actor did (a resume)."""
+        with self._lock:
+            decision = None
+            for stamp in sorted(s for s, r in self._records.items() if r.action is not None):
+                if not holds(decision, stamp):
+                    decision = stamp
+                self._records[stamp].decision = decision
 
     def set_taken(self, stamp: int, action: int) -> Optional[int]:
         """Record the action the world executed on ``stamp``; return the agent's answer."""

@@ -7,12 +7,33 @@ from tamer_node.model import HModel, to_input
 import torch
 
 
+def mixture_mse(judged: torch.Tensor, h: torch.Tensor, weights: torch.Tensor,
+                groups: torch.Tensor) -> torch.Tensor:
+    """
+    Mean over feedbacks of (credit-weighted mean of H over its steps - h)^2.
+
+    A late feedback is the verdict on *one* of the steps its window covers, each with its
+    credit's probability, so its expected value is the credit-weighted mean of the verdicts:
+    least squares on that mean is an unbiased fit of H (a deconvolution of the delay), where
+    regressing every step to h ('each', Deep TAMER's) fits each step to the blur of its
+    neighbours' verdicts. A feedback with one step (step credit) is the plain squared error.
+    """
+    count = int(groups.max()) + 1
+    mass = torch.zeros(count).index_add_(0, groups, weights)
+    mean = torch.zeros(count).index_add_(0, groups, weights * judged) / mass.clamp_min(1e-12)
+    target = torch.zeros(count).index_add_(0, groups, weights * h) / mass.clamp_min(1e-12)
+    used = mass > 0
+    return ((mean - target)[used] ** 2).mean()
+
+
 class Learner:
     """Trains an ``HModel``; one thread at a time calls ``train_step`` (see learner_loop.py)."""
 
     def __init__(self, model: HModel, learning_rate: float = 3e-4, alpha: float = 1e-4,
-                 max_grad_norm: float = 1.0):
+                 max_grad_norm: float = 1.0, credit_loss: str = 'each'):
         self.model = model
+        self.credit_loss = credit_loss
+        """'each': every credited step regressed to h; 'mixture': their credit-weighted mean."""
         self.max_grad_norm = float(max_grad_norm)
         """Clip the gradient's global norm to this before each step (0 = no clipping)."""
         self.optimizer = torch.optim.Adam(model.trainable_parameters(), lr=learning_rate)
@@ -35,7 +56,10 @@ class Learner:
         """Return (loss, mse, l2) for a batch, as tensors with their graph."""
         predictions = self.predict(batch.states)                      # H(s, .), (B, 18)
         judged = predictions.gather(1, batch.actions.unsqueeze(1)).squeeze(1)
-        mse = (batch.weights * (judged - batch.h) ** 2).sum() / batch.weights.sum()
+        if self.credit_loss == 'mixture' and batch.groups is not None:
+            mse = mixture_mse(judged, batch.h, batch.weights, batch.groups)
+        else:
+            mse = (batch.weights * (judged - batch.h) ** 2).sum() / batch.weights.sum()
         rows = batch.has_companion
         if self.alpha == 0.0 or not bool(rows.any()):
             # Vanilla Deep TAMER: no saliency image is even run through the network.

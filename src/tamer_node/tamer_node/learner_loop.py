@@ -34,7 +34,7 @@ from tamer_node.config import TamerConfig
 from tamer_node.events import FeedbackEvent, LEARNER_COUNTERS
 from tamer_node.history import StepHistory
 from tamer_node.learner import Learner
-from tamer_node.pairing import pair, settled
+from tamer_node.pairing import pair, predict_judged, settled
 from tamer_node.persistence import DiskWriter, StepJournal
 from tamer_node.schedule import UpdateSchedule
 
@@ -68,6 +68,9 @@ class LearnerWorker(threading.Thread):
         self._sim_now: Optional[float] = None  # newest observation stamp, simulation seconds
         self._wake_at = math.inf  # sim time at which tick() should wake the learner
         self.applied_seq = 0
+        self.on_credit: Optional[Callable[[FeedbackEvent, List[Sample]], None]] = None
+        """Called on this thread with each feedback learned from and its samples (the steps
+        its credit went to, with their weights), live only (not while resuming)."""
 
     # Producers (any thread).
     def submit(self, event: FeedbackEvent) -> None:
@@ -179,7 +182,7 @@ class LearnerWorker(threading.Thread):
                     schedule.start(clock)  # if not started yet (a resumed buffer)
                     schedule.advance(clock)
                     if schedule.take():
-                        batch = self.buffer.sample(self.config.batch_size, self._rng)
+                        batch = self._minibatch()
                         self._update(batch, immediate=False)
                 progress = (self.learner.updates, self.applied_seq)
                 next_checkpoint = checkpoints.next_at(progress)
@@ -227,6 +230,8 @@ class LearnerWorker(threading.Thread):
                 break
             self._pending.popleft()
             samples = self.process(event, self.history)
+            if samples and self.on_credit is not None:
+                self.on_credit(event, samples)
             if samples and not self.schedule.started:
                 # Minibatches are owed from the first sample's feedback on (its arrival).
                 self.schedule.start(self._event_time(event))
@@ -237,6 +242,12 @@ class LearnerWorker(threading.Thread):
             # one step each would let the learner fall behind the feedback without bound when
             # the graph steps fast (tried: 1,418 of 5,000 feedback used at 440 steps/s).
             self._update(collate(fresh), immediate=True)
+
+    def _minibatch(self):
+        """``batch_size`` samples, or with the ``mixture`` loss ``batch_size`` whole feedbacks."""
+        if self.config.credit_loss == 'mixture':
+            return self.buffer.sample_feedback(self.config.batch_size, self._rng)
+        return self.buffer.sample(self.config.batch_size, self._rng)
 
     def _wants_companion(self) -> bool:
         return self.learner.alpha > 0.0
@@ -259,6 +270,7 @@ class LearnerWorker(threading.Thread):
                 self.counters['train/skipped_nonfinite'] += 1
             self._log('warn', f'update skipped: the loss is not finite ({losses["loss"]})')
             return
+        self._refit_credit()
         self.slot.publish(self.learner.updates, self.learner.snapshot())
         self._updated.set()
         with self._lock:
@@ -268,6 +280,17 @@ class LearnerWorker(threading.Thread):
                           else 'train/minibatch_updates'] += 1
             if losses['l2_rows']:
                 self.counters['train/l2_updates'] += 1
+
+    def _refit_credit(self) -> None:
+        """Credit by prediction: re-weigh the buffer with the new H every so many updates."""
+        every = self.config.credit_refit_updates
+        if not self.config.credit_posterior or every <= 0 or self.learner.updates % every:
+            return
+        model = self.learner.model
+        self.buffer.refit_weights(lambda s, a: predict_judged(model, s, a),
+                                  self.config.credit_noise)
+        with self._lock:
+            self.counters['credit/refits'] += 1
 
     # Checkpoints and resume (checkpointing.py).
     def checkpoint(self) -> int:
@@ -287,7 +310,7 @@ class LearnerWorker(threading.Thread):
         Each feedback is paired with the steps of its own session only. The live history
         stays empty: this process is a new session, whose env stamps start over.
         """
-        sessions = journal_histories(journal_records)
+        sessions = journal_histories(journal_records, self.config.decision_period_s)
         if checkpoint is not None:
             missing = self.checkpoints.load(checkpoint, sessions)
             with self._lock:

@@ -3,8 +3,10 @@ tamer_node: Deep TAMER with the saliency L2 term over ROS topics (a thin shell o
 
 Subscribes ``observation``, ``saliency``, ``feedback``, ``feedback_stamped``, ``utterance`` and
 ``action_taken`` (the action executed on a step when it was not the agent's: attention_replay);
-publishes ``action`` (sensor_msgs/Joy with the answered image's header), ``metrics``, and
-``feedback_logged``: one receipt per feedback or utterance line written to the log.
+publishes ``action`` (sensor_msgs/Joy with the answered image's header), ``metrics``,
+``feedback_logged``: one receipt per feedback or utterance line written to the log,
+``action_values`` (while anyone listens: H of every action on each step acted on, and the action
+taken) and ``feedback_credit`` (the steps each feedback learned from was credited to).
 Every TamerConfig field is a parameter of the same name; ``alpha`` may be changed at run time.
 
 Executor: one thread (``attention_common.executors``: the EventsExecutor) on purpose. Every
@@ -64,6 +66,12 @@ class TamerNode(Node):
         self.logged_pub = self.create_publisher(DiagnosticArray, topics.FEEDBACK_LOGGED,
                                                 qos.HUMAN)
         self.agent.on_logged = self._publish_receipt
+        self.values_pub = self.create_publisher(DiagnosticArray, topics.ACTION_VALUES,
+                                                qos.ACTION_VALUES)
+        self.credit_pub = self.create_publisher(DiagnosticArray, topics.FEEDBACK_CREDIT,
+                                                qos.HUMAN)
+        self.agent.acting.on_acted = self._publish_values
+        self.agent.worker.on_credit = self._publish_credit
         self.create_subscription(Image, topics.OBSERVATION, self._on_observation, qos.FRAMES)
         self.create_subscription(Image, topics.SALIENCY, self._on_saliency, qos.FRAMES)
         self.create_subscription(Joy, topics.ACTION_TAKEN, self._on_action_taken, qos.ACTIONS)
@@ -204,6 +212,35 @@ class TamerNode(Node):
         array = DiagnosticArray(status=[status])
         array.header.stamp = self.get_clock().now().to_msg()
         self.logged_pub.publish(array)
+
+    def _publish_values(self, stamp: int, action: int, values) -> None:
+        """On the acting thread: H of every action and the one taken, while anyone listens."""
+        if not self.values_pub.get_subscription_count():
+            return  # a lockstep run without a viewer pays nothing for it
+        names = self.agent.task.action_names
+        status = DiagnosticStatus(level=DiagnosticStatus.OK, name='action_values',
+                                  hardware_id='tamer_node', message=names[action])
+        status.values = [KeyValue(key='action', value=str(action)),
+                         KeyValue(key='version', value=str(self.agent.actor.version))]
+        status.values += [KeyValue(key=name, value=f'{float(h):.4f}')
+                          for name, h in zip(names, values.tolist())]
+        array = DiagnosticArray(status=[status])
+        array.header = Header(stamp=ns_to_stamp(stamp), frame_id=self._frame_id)
+        self.values_pub.publish(array)
+
+    def _publish_credit(self, event, samples) -> None:
+        """On the learner thread: the steps a feedback's credit went to, and their weights."""
+        if not self.context.ok():
+            return
+        status = DiagnosticStatus(level=DiagnosticStatus.OK, name='feedback_credit',
+                                  hardware_id='tamer_node', message=event.credit)
+        status.values = [KeyValue(key='seq', value=str(event.seq)),
+                         KeyValue(key='h', value=_format(float(event.h)))]
+        status.values += [KeyValue(key=str(sample.stamp), value=f'{sample.weight:.5f}')
+                          for sample in samples]
+        array = DiagnosticArray(status=[status])
+        array.header.stamp = ns_to_stamp(event.now if event.now is not None else event.stamp)
+        self.credit_pub.publish(array)
 
     def _log(self, level: str, text: str) -> None:
         # One call site per severity: rclpy's logger refuses another severity from the same

@@ -14,12 +14,14 @@ waits forever, and the events behind it wait no longer than that.
 import collections
 from typing import Counter, Dict, List, NamedTuple, Optional
 
+import numpy as np
 from tamer_node.buffer import Sample
 from tamer_node.config import TamerConfig
 from tamer_node.credit import step_credit, window_credit
 from tamer_node.events import FeedbackEvent
 from tamer_node.history import other_kind, StepHistory, StepRecord
 from tamer_node.model import HModel, to_input
+from tamer_node.posterior import feedback_likelihood, posterior_weights
 import torch
 
 
@@ -38,11 +40,31 @@ def credit(event: FeedbackEvent, history: StepHistory, config: TamerConfig) -> D
     if event.credit == 'window':
         if event.now is None:
             return {}
-        return window_credit(history.acted_spans(event.now), event.now,
-                             config.window_min_s, config.window_max_s)
-    record = history.get(event.stamp) if event.stamp is not None else None
-    known = [event.stamp] if record is not None and record.learned_action is not None else []
-    return step_credit(event.stamp, known)
+        steps = window_credit(history.acted_spans(event.now), event.now,
+                              config.window_min_s, config.window_max_s)
+    else:
+        record = history.get(event.stamp) if event.stamp is not None else None
+        known = [event.stamp] if record is not None and record.learned_action is not None else []
+        steps = step_credit(event.stamp, known)
+    return to_decisions(steps, history) if config.decision_period_s > 0.0 else steps
+
+
+def to_decisions(steps: Dict[int, float], history: StepHistory) -> Dict[int, float]:
+    """
+    Move each step's credit to the step that chose its action (``decision_period_s`` > 0).
+
+    A held action is one decision, made on the state of its first step: that is the (s, a)
+    the agent acts on, so that is what a verdict on any of its steps labels. Steps of a
+    decision whose first step is no longer held keep their own credit.
+    """
+    decided: Dict[int, float] = collections.defaultdict(float)
+    for stamp, weight in steps.items():
+        record = history.get(stamp)
+        first = record.decision if record is not None else None
+        if first is None or history.get(first) is None:
+            first = stamp
+        decided[first] += weight
+    return dict(decided)
 
 
 def settled(event: FeedbackEvent, history: StepHistory, config: TamerConfig,
@@ -73,6 +95,24 @@ def stored_item(record: StepRecord, kind: str, history: StepHistory,
     return features
 
 
+@torch.no_grad()
+def predict_judged(model: HModel, states: torch.Tensor, actions: torch.Tensor) -> np.ndarray:
+    """Return H(s, a) of rows of images, or of cached features (a frozen encoder)."""
+    values = (model(to_input(states)) if states.dtype == torch.uint8
+              else model.from_features(states))
+    return values.gather(1, actions.long().unsqueeze(1)).squeeze(1).numpy()
+
+
+def by_prediction(samples: List[Sample], model: HModel, noise: float) -> List[Sample]:
+    """Return one feedback's samples re-weighted by credit by prediction (posterior.py)."""
+    predicted = predict_judged(model, torch.stack([s.state for s in samples]),
+                               torch.tensor([s.action for s in samples]))
+    priors = np.array([s.weight for s in samples])
+    weights = posterior_weights(priors, feedback_likelihood(
+        np.array([s.h for s in samples]), predicted, noise), np.zeros(len(samples)))
+    return [s._replace(weight=float(w), prior=s.weight) for s, w in zip(samples, weights)]
+
+
 def pair(event: FeedbackEvent, history: StepHistory, config: TamerConfig, model: HModel,
          wants_companion: bool) -> Paired:
     """Return the samples of ``event`` on the steps of ``history``, and what to count."""
@@ -96,6 +136,8 @@ def pair(event: FeedbackEvent, history: StepHistory, config: TamerConfig, model:
                    else 'pairing/without_saliency'] += 1
             samples.append(Sample(state, companion, record.learned_action, float(event.h),
                                   float(weight), stamp, event.seq, history.session))
+        if samples and config.credit_posterior and event.credit == 'window':
+            samples = by_prediction(samples, model, config.credit_noise)
         if samples:
             counts['feedback/count'] += 1
             counts['samples/added'] += len(samples)

@@ -2,8 +2,9 @@
 trainer_console: a person teaches from the browser (a thin rclpy shell on ConsoleState).
 
 Subscribes ``observation`` and ``saliency`` (shown live, as JPEG over a websocket),
-``env_status``, ``metrics``, ``utterance``, ``utterance_stamped`` and ``feedback_logged`` (the
-learner's receipts); publishes ``feedback`` (std_msgs/Float32) and ``utterance``
+``env_status``, ``metrics``, ``utterance``, ``utterance_stamped``, ``feedback_logged`` (the
+learner's receipts), ``action_values`` and ``feedback_credit`` (what the learner made of the
+person: ``learner_view.py``); publishes ``feedback`` (std_msgs/Float32) and ``utterance``
 (std_msgs/String), the very topics ``ros2 topic pub`` uses, and sets env_node's ``paused``.
 The web server runs on its own thread (``web.ConsoleServer``); rclpy spins in the main one.
 """
@@ -18,6 +19,7 @@ from attention_common.feedback import FEEDBACK_RANGE
 from attention_common.image_codec import image_to_numpy, ImageFormatError
 from attention_common.node_main import run_node, StartupError
 from attention_common.parameters import declare_dataclass
+from attention_common.stamps import stamp_to_ns
 from attention_common.utterance import MAX_UTTERANCE_CHARS
 from attention_tasks.montezuma.critical_positions import DEFAULT_RADIUS
 from attention_tasks.task import load_task, UnknownTask
@@ -75,6 +77,10 @@ class ConsoleNode(Node):
                                  self._on_utterance_stamped, qos.HUMAN)
         self.create_subscription(DiagnosticArray, topics.FEEDBACK_LOGGED,
                                  self.state.on_receipt_message, qos.HUMAN)
+        self.create_subscription(DiagnosticArray, topics.ACTION_VALUES, self._on_values,
+                                 qos.ACTION_VALUES)
+        self.create_subscription(DiagnosticArray, topics.FEEDBACK_CREDIT, self._on_credit,
+                                 qos.HUMAN)
         self._env_parameters = AsyncParameterClient(self, self.config.env_node)
         self.create_timer(1.0, self._look_for_listeners)
         token = None
@@ -83,7 +89,8 @@ class ConsoleNode(Node):
         self.server = ConsoleServer(self.config.host, self.config.port, self.frames,
                                     self.state.snapshot, self.on_command,
                                     self.config.frame_rate_hz, token,
-                                    log=self.get_logger().warning)
+                                    log=self.get_logger().warning,
+                                    view=self.state.learner.view)
         try:
             port = self.server.start()
         except OSError as error:
@@ -110,7 +117,7 @@ class ConsoleNode(Node):
         ok, jpeg = cv2.imencode('.jpg', cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR),
                                 [cv2.IMWRITE_JPEG_QUALITY, self.config.jpeg_quality])
         if ok:
-            self.frames.put(kind, jpeg.tobytes())
+            self.frames.put(kind, jpeg.tobytes(), stamp_to_ns(msg.header.stamp))
 
     def _on_status(self, msg: DiagnosticArray) -> None:
         try:
@@ -127,6 +134,16 @@ class ConsoleNode(Node):
             except ValueError:
                 pass
         self.state.on_metrics(values)
+
+    def _on_values(self, msg: DiagnosticArray) -> None:
+        self._warn(self.state.learner.on_values(stamp_to_ns(msg.header.stamp), _first(msg)))
+
+    def _on_credit(self, msg: DiagnosticArray) -> None:
+        self._warn(self.state.learner.on_credit(_first(msg)))
+
+    def _warn(self, problem) -> None:
+        if problem:
+            self.get_logger().warning(problem, throttle_duration_sec=10.0)
 
     def _on_utterance_stamped(self, msg: DiagnosticArray) -> None:
         if msg.status:
@@ -198,6 +215,14 @@ class ConsoleNode(Node):
         if server is not None:
             server.stop()
         super().destroy_node()
+
+
+def _first(msg: DiagnosticArray):
+    """Return (name, message, [(key, value)]) of the first status, or None."""
+    if not msg.status:
+        return None
+    status = msg.status[0]
+    return status.name, status.message, [(kv.key, kv.value) for kv in status.values]
 
 
 def main(args=None) -> int:

@@ -5,7 +5,8 @@ The node feeds it what it hears (``on_*``) and what it sends (``sent``); the web
 ``snapshot()``. A key press is *given* when published and *confirmed* only once the learner's
 receipt on ``feedback_logged`` names it: the learner logged that message, not just some message.
 A message is named by its publisher's sequence number (1, 2, 3, ... per publisher, from DDS)
-and its source time, which both the console and the receipt know.
+and its source time, which both the console and the receipt know. The receipt of a press of
+ours also gives its ``seq`` in the learner's log: what ``learner`` (H and credit) keys it by.
 """
 
 import collections
@@ -14,6 +15,8 @@ import math
 import threading
 import time
 from typing import Callable, Deque, Dict, List, Optional, Sequence
+
+from trainer_console.learner_view import LearnerView
 
 RECEIPT_WINDOW_NS = 10 * 1_000_000_000
 """A receipt names a press when the sequence number matches and the times are this close."""
@@ -65,6 +68,8 @@ class ConsoleState:
     """kind -> the nodes that subscribe to its topic (from the ROS graph)."""
     history: Deque[tuple] = field(default_factory=lambda: collections.deque(
         maxlen=HISTORY_POINTS))
+    learner: LearnerView = field(default_factory=LearnerView)
+    """H of each step and the credit of our presses (the panels under the frame)."""
     _lock: threading.Lock = field(default_factory=threading.Lock)
     _last_point: float = 0.0
 
@@ -99,7 +104,12 @@ class ConsoleState:
                 seq, source = int(values['publication_seq']), int(values['source_time_ns'])
             except (KeyError, ValueError):
                 continue  # a receipt without a DDS identity names nobody's press
-            self.on_receipt(status.name, seq, source, values.get('status', 'ok'))
+            press = self.on_receipt(status.name, seq, source, values.get('status', 'ok'))
+            if press is not None and press.kind == 'feedback' and press.status == 'ok':
+                try:
+                    self.learner.ours(int(values['seq']))  # its credit will name this seq
+                except (KeyError, ValueError):
+                    pass
 
     def on_utterance(self, text: str) -> None:
         """Take an utterance said by anyone: what it names is what the saliency image keeps."""

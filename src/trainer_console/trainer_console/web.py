@@ -2,9 +2,12 @@
 The console's web server (aiohttp, on a thread of its own with its own asyncio loop).
 
 ``GET /`` is the page, ``/static/*`` its script, ``GET /ws`` a websocket: the server sends
-frames as binary messages (one byte, ``F`` frame or ``S`` saliency image, then the JPEG) as
-they come, at most 2 x ``frame_rate_hz``, and the state as JSON text 4 times a second; the page
-sends JSON commands (``feedback``, ``utterance``, ``pause``, ``resume``), handed to
+frames as binary messages (one byte, ``F`` frame or ``S`` saliency image, the image's stamp in
+ns as 8 bytes big-endian, then the JPEG) as they come, at most 2 x ``frame_rate_hz``; the state
+as JSON text 4 times a second; and the learner's view of the frame just sent (``view(stamp)``:
+its H, the credit strip) as JSON text ``{"type": "view", ...}`` after a new frame, at most
+``frame_rate_hz``, and 4 times a second (an H that came after its frame replaces an older one).
+The page sends JSON commands (``feedback``, ``utterance``, ``pause``, ``resume``), handed to
 ``on_command``. With a token, every request must carry ``?token=...``.
 """
 
@@ -12,6 +15,7 @@ import asyncio
 import hmac
 import json
 from pathlib import Path
+import struct
 import threading
 from typing import Callable, Optional
 
@@ -20,28 +24,30 @@ from aiohttp import web, WSMsgType
 STATIC = Path(__file__).resolve().parent / 'static'
 STATE_PERIOD_S = 0.25
 KIND_BYTES = {'frame': b'F', 'saliency': b'S'}
+STAMP = struct.Struct('>Q')
+"""The image's stamp (ns) after the kind byte: the page pairs the frame with its step's H."""
 
 
 class Frames:
-    """The newest JPEG of each kind, with a version number (written by rclpy callbacks)."""
+    """The newest JPEG of each kind, with its stamp and a version (written by rclpy callbacks)."""
 
     def __init__(self):
         self._lock = threading.Lock()
-        self._latest = {kind: (0, b'') for kind in KIND_BYTES}
+        self._latest = {kind: (0, 0, b'') for kind in KIND_BYTES}
 
-    def put(self, kind: str, jpeg: bytes) -> None:
+    def put(self, kind: str, jpeg: bytes, stamp_ns: int = 0) -> None:
         with self._lock:
             version = self._latest[kind][0] + 1
-            self._latest[kind] = (version, jpeg)
+            self._latest[kind] = (version, min(max(int(stamp_ns), 0), 2**64 - 1), jpeg)
 
     def newer(self, seen: dict) -> list:
-        """Return [(kind, jpeg)] newer than ``seen`` ({kind: version}), updating ``seen``."""
+        """Return [(kind, stamp, jpeg)] newer than ``seen`` ({kind: version}), updating it."""
         out = []
         with self._lock:
-            for kind, (version, jpeg) in self._latest.items():
+            for kind, (version, stamp, jpeg) in self._latest.items():
                 if version > seen.get(kind, 0):
                     seen[kind] = version
-                    out.append((kind, jpeg))
+                    out.append((kind, stamp, jpeg))
         return out
 
 
@@ -50,10 +56,13 @@ class ConsoleServer:
 
     def __init__(self, host: str, port: int, frames: Frames, snapshot: Callable[[], dict],
                  on_command: Callable[[dict], dict], frame_rate_hz: float,
-                 token: Optional[str] = None, log: Callable[[str], None] = print):
+                 token: Optional[str] = None, log: Callable[[str], None] = print,
+                 view: Optional[Callable[[Optional[int]], dict]] = None):
         self.host, self.port = host, port
         self.frames, self.snapshot, self.on_command = frames, snapshot, on_command
+        self.view = view
         self.poll_period = 0.5 / frame_rate_hz  # new frames go out within half a period
+        self.view_period = 1.0 / frame_rate_hz
         self.token = token
         self._log = log
         self._loop = asyncio.new_event_loop()
@@ -119,12 +128,21 @@ class ConsoleServer:
         return socket
 
     async def _send(self, socket) -> None:
-        seen, last_state = {}, 0.0
+        seen, last_state, last_view = {}, 0.0, 0.0
+        shown, view_due = None, True  # the stamp of the frame this page shows
         try:
             while not socket.closed:
-                for kind, jpeg in self.frames.newer(seen):
-                    await socket.send_bytes(KIND_BYTES[kind] + jpeg)
+                for kind, stamp, jpeg in self.frames.newer(seen):
+                    await socket.send_bytes(KIND_BYTES[kind] + STAMP.pack(stamp) + jpeg)
+                    if kind == 'frame':
+                        shown, view_due = stamp, True
                 now = self._loop.time()
+                if self.view is not None and (
+                        view_due and now - last_view >= self.view_period
+                        or now - last_view >= STATE_PERIOD_S):
+                    last_view, view_due = now, False
+                    await socket.send_str(json.dumps(dict(self.view(shown), type='view'),
+                                                     allow_nan=False))
                 if now - last_state >= STATE_PERIOD_S:
                     last_state = now
                     await socket.send_str(json.dumps(dict(self.snapshot(), type='state'),

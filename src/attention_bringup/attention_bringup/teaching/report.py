@@ -106,8 +106,15 @@ def ablation_rows(out_dir: Path) -> List[List[str]]:
         rows.append([f'`{path.stem}`', data.get('what', ''), str(len(results)),
                      f'{len(keyed)}', ', '.join(map(str, keyed)) or '-',
                      _num(sum(r['agreement'] for r in results) / len(results), 2),
-                     _num(lives), f'`{command}`'])
+                     _num(lives), _mean_of(results, 'furthest_stage', 1),
+                     _mean_of(results, 'learned_purity', 2), f'`{command}`'])
     return rows
+
+
+def _mean_of(results, key: str, digits: int) -> str:
+    """Return the mean of a per-trial field of later teach_inprocess.py runs ('-' if none)."""
+    values = [r[key] for r in results if r.get(key) is not None]
+    return _num(sum(values) / len(values), digits) if values else '-'
 
 
 def target_lines(result: Mapping) -> List[str]:
@@ -173,11 +180,17 @@ def write(path: Path, out_dir: Path, result: Mapping, by_setting: Mapping, optio
     if rows:
         text += ['## What each change bought (in one process, tuning seeds)', '']
         text += _table(['variant', 'what', 'trials', 'key', 'first key steps',
-                        'agreement', 'lives lost', 'command'], rows)
+                        'agreement', 'lives lost', 'furthest stage', 'label purity',
+                        'command'], rows)
         text += ['', 'Each row: `tests/benchmarks/teach_inprocess.py` with the real game, the '
                  'teacher and TamerAgent in one process, 10,000 steps per trial, seeds 100-105 '
                  '(tuning seeds). *Agreement*: the share of judged actions the teacher '
-                 "counted as the expert's.", '']
+                 "counted as the expert's. *Furthest stage*: the furthest stage of the "
+                 "expert's route the agent was in (0 walk to the middle ladder ... 6 the floor, "
+                 '7 up the left ladder, 8 to the key, 9 the key), mean of the trials. *Label '
+                 "purity*: of each late feedback's weight in the learner's buffer at the end "
+                 '(after any credit by prediction), the share on steps that did the judged '
+                 'action. Both are recorded by runs from issue 23 on.', '']
     discussion = out_dir / 'discussion.md'
     if discussion.exists():
         text += ['## Discussion', '', discussion.read_text().strip(), '']

@@ -7,6 +7,7 @@ let nextId = 1;
 let lastSnapshot = null;
 const urls = {F: null, S: null};
 window.framesShown = {F: 0, S: 0};  // images shown so far, by kind (tests and the benchmark read it)
+window.frameStamp = null;  // the stamp (ns, a string: it may exceed 2**53) of the frame on screen
 
 function connect() {
   const query = token ? `?token=${encodeURIComponent(token)}` : '';
@@ -22,14 +23,18 @@ function connect() {
     let message;
     try { message = JSON.parse(event.data); } catch (error) { note(`unreadable state: ${error}`, 'bad'); return; }
     if (message.type === 'state') { showState(message); }
+    if (message.type === 'view') { showView(message); }
     if (message.type === 'reply' && !message.ok) { note(`not sent: ${message.error}`, 'bad'); }
   };
 }
 
 function showImage(buffer) {
+  // One byte of kind, the image's stamp (ns, 8 bytes big-endian), then the JPEG.
   const kind = String.fromCharCode(new Uint8Array(buffer, 0, 1)[0]);
-  const url = URL.createObjectURL(new Blob([buffer.slice(1)], {type: 'image/jpeg'}));
+  const stamp = new DataView(buffer, 1, 8).getBigUint64(0).toString();
+  const url = URL.createObjectURL(new Blob([buffer.slice(9)], {type: 'image/jpeg'}));
   const img = kind === 'F' ? $('frame') : $('saliency');
+  if (kind === 'F') { window.frameStamp = stamp; }
   img.src = url;
   if (urls[kind]) { URL.revokeObjectURL(urls[kind]); }
   urls[kind] = url;
@@ -61,6 +66,84 @@ function showState(s) {
     `<li class="${p.confirmed ? 'good' : 'pending'}">${p.kind} ${escapeHtml(String(p.value))}` +
     `${p.confirmed ? ` logged (${p.status})` : ' waiting'}</li>`).join('');
   plot(s.history);
+}
+
+// What the learner made of the person, for the frame on screen (the server's view of it).
+function showView(v) {
+  showValues(v.values);
+  showStrip(v.strip, v.newest ? v.newest.seq : null);
+  showCredit(v);
+}
+
+function showValues(values) {
+  const panel = $('h_panel'), bars = $('h_bars');
+  if (!values) {
+    $('h_title').textContent = 'H: nothing heard from the learner yet (action_values)';
+    bars.replaceChildren(); bars.dataset.names = ''; panel.dataset.stamp = ''; panel.dataset.exact = '0';
+    return;
+  }
+  if (bars.dataset.names !== values.names.join(',')) {  // the task's actions, built once
+    bars.replaceChildren(...values.names.map((name) => {
+      const row = document.createElement('div'); row.className = 'bar';
+      const label = document.createElement('span'); label.className = 'name'; label.textContent = name;
+      const track = document.createElement('span'); track.className = 'track';
+      track.appendChild(document.createElement('b'));
+      const number = document.createElement('span'); number.className = 'h';
+      row.append(label, track, number);
+      return row;
+    }));
+    bars.dataset.names = values.names.join(',');
+  }
+  const top = Math.max(1e-6, ...values.h.map((h) => Math.abs(h ?? 0)));
+  Array.from(bars.children).forEach((row, i) => {
+    const h = values.h[i] ?? 0, width = Math.abs(h) / top * 50;
+    const bar = row.children[1].firstChild;
+    bar.style.left = `${h >= 0 ? 50 : 50 - width}%`; bar.style.width = `${width}%`;
+    bar.className = h >= 0 ? 'up' : 'down';
+    row.children[2].textContent = fmt(values.h[i], 3);
+    row.classList.toggle('taken', i === values.action);
+  });
+  const which = values.exact ? 'of this frame' : `of the step ${values.behind_ms} ms before this frame`;
+  $('h_title').replaceChildren(`H ${which} (model v${values.version ?? '-'}), took `,
+    Object.assign(document.createElement('b'), {id: 'taken', textContent: values.taken}));
+  panel.dataset.stamp = values.stamp; panel.dataset.exact = values.exact ? '1' : '0';
+}
+
+function showStrip(strip, newest) {
+  const el = $('strip');
+  if (el.children.length !== strip.size) {
+    el.replaceChildren(...Array.from({length: strip.size}, () => document.createElement('i')));
+  }
+  const offset = strip.size - strip.steps, cells = el.children;
+  for (let i = 0; i < cells.length; i++) {
+    cells[i].className = i >= offset ? 'step' : ''; cells[i].style.background = '';
+    delete cells[i].dataset.stamp; delete cells[i].dataset.seq;
+  }
+  for (const [index, stamp, seq, sign, level] of strip.cells) {
+    const cell = cells[offset + index];
+    const alpha = ((0.25 + 0.75 * level) * (seq === newest ? 1 : 0.35)).toFixed(3);
+    cell.style.background = sign > 0 ? `rgba(80, 220, 80, ${alpha})`
+      : sign < 0 ? `rgba(240, 70, 70, ${alpha})` : `rgba(200, 200, 200, ${alpha})`;
+    cell.className = seq === newest ? 'step credit newest' : 'step credit';
+    cell.dataset.stamp = stamp; cell.dataset.seq = seq;
+  }
+  el.dataset.steps = strip.steps; el.dataset.first = strip.first || ''; el.dataset.last = strip.last || '';
+}
+
+function showCredit(v) {
+  const n = v.newest;
+  $('credit_seq').textContent = n ? `${n.seq}` : '-';
+  $('credit_h').textContent = n ? `${n.h > 0 ? '+' : ''}${n.h}` : '-';
+  $('credit_mode').textContent = n ? n.mode : '-';
+  $('credit_steps').textContent = n ? n.steps : '-';
+  $('credit_shown').textContent = n ? n.shown : '-';
+  $('credit_sum').textContent = n ? fmt(n.sum, 3) : '-';
+  const notes = [];
+  if (v.waiting.length) { notes.push(`no credit yet for your press #${v.waiting.join(', #')}`); }
+  if (v.others.count) { notes.push(`credit heard for ${v.others.count} feedback not from this page`); }
+  const bad = v.malformed.action_values + v.malformed.feedback_credit;
+  if (bad) { notes.push(`${bad} malformed messages ignored`); }
+  $('credit_note').textContent = notes.join('; ');
 }
 
 function escapeHtml(text) {

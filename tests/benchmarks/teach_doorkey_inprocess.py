@@ -1,0 +1,118 @@
+"""
+Teaching DoorKey in one process: the real MiniGrid level, the teacher and TamerAgent, no ROS.
+
+The graph's loop, one step after the other, as ``teach_inprocess.py`` does for Room 1: the agent
+acts on the observation, the env steps, the teacher sees the step's status values (as it reads
+env_status) and judges the previous action; feedback without delay goes in stamped, late
+feedback plain (stamped by the agent on arrival, credited by its window). The settings are
+DoorKey's (``config/tasks/doorkey.yaml``: 8 x 8, four distractors, 100 steps an episode; the
+learner's 1.5 minibatch updates per step); the last ``--heldout`` steps are on held-out layouts.
+
+Run: ``.venv/bin/python tests/benchmarks/teach_doorkey_inprocess.py --seeds 100 101 --steps 10000
+[--human-like] [--set hold_steps=1 ...] [--out results.json]``.
+"""
+
+import argparse
+import json
+from pathlib import Path
+import sys
+import tempfile
+import time
+
+from teach_inprocess import parse_value
+
+
+def run_trial(seed: int, steps: int, heldout: int, human_like: bool, overrides: dict,
+              workdir: Path) -> dict:
+    from attention_bringup.plan import human_like_window_s
+    from attention_tasks.doorkey.env import DoorKeyEnv, DoorKeyEnvConfig, STEP_S
+    from env_node.status import Counters, parse_status, status_values
+    from feedback_node.human_like import HUMAN_LIKE_SETTING
+    from feedback_node.judging import TeacherConfig
+    from feedback_node.task_teacher import load_knowledge, TaskTeacher
+    from tamer_node.agent import share_the_cpu, TamerAgent
+    from tamer_node.config import TamerConfig
+
+    share_the_cpu()
+    knobs = vars(HUMAN_LIKE_SETTING) if human_like else {}
+    teacher = TaskTeacher(load_knowledge('doorkey'), 6,
+                          TeacherConfig(utterance_interval=-1.0, seed=seed, **knobs))
+    config = {'task': 'doorkey', 'seed': seed, 'alpha': 0.0, 'update_rate_hz': 1.5,
+              'greedy_margin': 0.1, 'credit': 'window' if human_like else 'step'}
+    if human_like:
+        config['window_min_s'], config['window_max_s'] = human_like_window_s(STEP_S)
+    config.update(overrides)
+    run_dir = workdir / f'seed{seed}'
+    agent = TamerAgent(TamerConfig(run_dir=str(run_dir), **config), run_dir)
+    agent.start()
+    env = DoorKeyEnv(DoorKeyEnvConfig(seed=seed, size=8, distractors=4, max_episode_steps=100,
+                                      heldout_after=steps - heldout))
+    counters = Counters()
+
+    def see(step):
+        values = parse_status(status_values(step, counters, False))
+        return teacher.on_step(teacher.see(step.sim_time_ns, values)).feedback
+
+    episodes = []  # (held out, solved, sub-goals)
+    started = time.monotonic()
+    step = env.reset()
+    see(step)
+    for _ in range(steps):
+        action = agent.on_observation(step.sim_time_ns, step.observation)
+        step = env.step(action)
+        for judgement in see(step):
+            if human_like:
+                agent.on_feedback(judgement.h, 'plain')
+            else:
+                agent.on_feedback(judgement.h, 'stamped', judgement.stamp_ns)
+        if step.done:
+            values = parse_status(status_values(step, counters, False))
+            episodes.append((bool(step.state.heldout), bool(values.get('at_goal')),
+                             int(values.get('subgoals', 0))))
+            step = env.reset()
+            see(step)
+    metrics = agent.metrics()
+    agent.close()
+    env.close()
+    held = [e for e in episodes if e[0]]
+    return {'seed': seed, 'episodes': len(episodes), 'heldout_episodes': len(held),
+            'heldout_solved': sum(e[1] for e in held),
+            'heldout_subgoals': sum(e[2] for e in held) / max(len(held), 1),
+            'training_solved': sum(e[1] for e in episodes if not e[0]),
+            'agreement': teacher.counts['agreed'] / max(teacher.counts['judged'], 1),
+            'updates_per_step': metrics['train/updates_per_step'],
+            'wall_s': time.monotonic() - started}
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split('\n')[1])
+    parser.add_argument('--seeds', type=int, nargs='+', default=[100])
+    parser.add_argument('--steps', type=int, default=10000)
+    parser.add_argument('--heldout', type=int, default=2500,
+                        help='the last steps, on held-out layouts')
+    parser.add_argument('--human-like', action='store_true')
+    parser.add_argument('--set', action='append', default=[], metavar='NAME=VALUE',
+                        help='a TamerConfig field (repeatable)')
+    parser.add_argument('--what', default='')
+    parser.add_argument('--out', type=Path, default=None)
+    args = parser.parse_args(argv)
+    overrides = {item.split('=', 1)[0]: parse_value(item.split('=', 1)[1]) for item in args.set}
+    results = []
+    with tempfile.TemporaryDirectory() as workdir:
+        for seed in args.seeds:
+            result = run_trial(seed, args.steps, args.heldout, args.human_like, overrides,
+                               Path(workdir))
+            results.append(result)
+            print(json.dumps(result), flush=True)
+    held = sum(r['heldout_episodes'] for r in results)
+    solved = sum(r['heldout_solved'] for r in results)
+    print(f'held-out solved {solved} of {held}; overrides {overrides}')
+    if args.out:
+        args.out.write_text(json.dumps({'what': args.what, 'argv': sys.argv[1:],
+                                        'overrides': overrides, 'human_like': args.human_like,
+                                        'results': results}, indent=1))
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,229 @@
+"""Late feedback's credit (no rclpy): credit by prediction, the mixture loss, held decisions."""
+
+from pathlib import Path
+import time
+
+from attention_common.joy_actions import NUM_ACTIONS
+import numpy as np
+import pytest
+from tamer_node.acting import ActingModel
+from tamer_node.agent import TamerAgent
+from tamer_node.buffer import collate, FeedbackBuffer, Sample
+from tamer_node.config import TamerConfig
+from tamer_node.history import holds, StepHistory
+from tamer_node.learner import Learner, mixture_mse
+from tamer_node.model import Encoder, FEATURE_SIZE, HModel
+from tamer_node.pairing import by_prediction
+from tamer_node.posterior import feedback_likelihood, posterior_weights
+import torch
+
+torch.set_num_threads(1)
+GOOD, BAD = 3, 7
+
+
+def constant_h(good=GOOD, value=0.9):
+    """Return an HModel whose H is +value for ``good`` and -value for every other action."""
+    model = HModel(freeze_encoder=True, encoder=Encoder())
+    with torch.no_grad():
+        model.head[2].weight.zero_()
+        model.head[2].bias.fill_(-value)
+        model.head[2].bias[good] = value
+    return model
+
+
+def sample(action, h, weight, seq, stamp=0, state=None):
+    state = torch.zeros(FEATURE_SIZE) if state is None else state
+    return Sample(state, None, action, h, weight, stamp, seq)
+
+
+# Credit by prediction (posterior.py).
+def test_a_learner_that_knows_nothing_gives_the_plain_window():
+    priors = np.array([0.2, 0.3, 0.5])
+    weights = posterior_weights(priors, feedback_likelihood(np.ones(3), np.zeros(3), 0.1),
+                                np.zeros(3))
+    assert weights == pytest.approx(priors)
+
+
+def test_a_good_verdict_goes_to_the_step_h_believes_good_and_keeps_its_mass():
+    priors = np.full(4, 0.25)
+    predicted = np.array([-0.9, 0.9, -0.9, -0.9])
+    good = posterior_weights(priors, feedback_likelihood(np.ones(4), predicted, 0.1),
+                             np.zeros(4))
+    bad = posterior_weights(priors, feedback_likelihood(-np.ones(4), predicted, 0.1),
+                            np.zeros(4))
+    assert good.sum() == pytest.approx(1.0) and bad.sum() == pytest.approx(1.0)
+    assert good.argmax() == 1 and good[1] > 0.6
+    assert bad[1] == bad.min() and bad[1] < 0.1
+
+
+def test_noise_bounds_how_far_one_prediction_moves_credit():
+    likelihood = feedback_likelihood(np.ones(2), np.array([5.0, -5.0]), 0.1)  # beyond [-1, 1]
+    assert likelihood[0] / likelihood[1] == pytest.approx(9.0)
+    with pytest.raises(ValueError):
+        feedback_likelihood(np.ones(1), np.zeros(1), 0.5)
+
+
+def test_each_feedback_is_normalised_on_its_own():
+    priors = np.array([0.5, 0.5, 1.0])
+    weights = posterior_weights(priors, np.array([0.9, 0.1, 0.3]), np.array([7, 7, 8]))
+    assert weights[:2].sum() == pytest.approx(1.0) and weights[2] == pytest.approx(1.0)
+    assert weights[0] == pytest.approx(0.9)
+
+
+def test_pairing_puts_a_late_good_on_the_decision_h_believes_good():
+    # A window of six steps, two actions; the learner believes GOOD is good here.
+    window = [sample(GOOD if i % 3 == 0 else BAD, 1.0, 1 / 6, seq=1, stamp=i) for i in range(6)]
+    credited = by_prediction(window, constant_h(), noise=0.1)
+    on_good = sum(s.weight for s in credited if s.action == GOOD)
+    good, bad = 0.1 + 0.8 * 0.95, 0.1 + 0.8 * 0.05  # P(+1 | H = 0.9), P(+1 | H = -0.9)
+    assert on_good == pytest.approx(2 * good / (2 * good + 4 * bad))  # plain window: 1/3
+    assert sum(s.weight for s in credited) == pytest.approx(1.0)
+    assert all(s.prior == pytest.approx(1 / 6) for s in credited)
+
+
+def test_the_buffer_is_reweighed_with_the_current_h():
+    buffer = FeedbackBuffer(100, (FEATURE_SIZE,), np.float32)
+    buffer.extend([sample(GOOD if i == 1 else BAD, 1.0, 0.25, seq=1, stamp=i) for i in range(4)])
+    buffer.extend([sample(GOOD, -1.0, 1.0, seq=2, stamp=9)])  # step credit: one step
+    model = constant_h()
+
+    def predict(states, actions):
+        with torch.no_grad():
+            return model.from_features(states).gather(1, actions.unsqueeze(1)).squeeze(1).numpy()
+
+    assert buffer.refit_weights(predict, 0.1) == 5
+    weights = buffer.columns['weights'][:5]
+    assert weights[1] == weights[:4].max() and weights[:4].sum() == pytest.approx(1.0)
+    assert weights[4] == pytest.approx(1.0)  # a single step keeps its whole weight
+    assert buffer.columns['priors'][:4] == pytest.approx([0.25] * 4)
+
+
+# The mixture loss (learner.mixture_mse).
+def fit_per_action(loss_name, steps=400, seed=0):
+    """Fit one H value per action to late feedback from windows that mix actions."""
+    rng = np.random.default_rng(seed)
+    verdict = np.array([1.0, -1.0, -1.0])  # action 0 is right, 1 and 2 are wrong
+    rows, seqs, h = [], [], []
+    for seq in range(400):
+        actions = rng.choice(3, size=10, p=rng.dirichlet([1, 1, 1]))
+        judged = actions[rng.integers(10)]
+        rows.append(actions)
+        seqs.append(np.full(10, seq))
+        h.append(np.full(10, verdict[judged] * (-1 if rng.random() < 0.1 else 1)))
+    actions = torch.from_numpy(np.concatenate(rows))
+    groups = torch.from_numpy(np.concatenate(seqs))
+    targets = torch.from_numpy(np.concatenate(h)).float()
+    weights = torch.full_like(targets, 0.1)
+    values = torch.zeros(3, requires_grad=True)
+    optimizer = torch.optim.Adam([values], lr=0.05)
+    for _ in range(steps):
+        judged = values[actions]
+        if loss_name == 'mixture':
+            loss = mixture_mse(judged, targets, weights, groups)
+        else:
+            loss = (weights * (judged - targets) ** 2).sum() / weights.sum()
+        optimizer.zero_grad()
+        loss.backward()
+        optimizer.step()
+    return values.detach().numpy()
+
+
+def test_the_mixture_loss_recovers_the_verdicts_that_per_step_regression_blurs():
+    each = fit_per_action('each')
+    mixture = fit_per_action('mixture')
+    # 10 % of signs flipped: the truth a fit can reach is 0.8 and -0.8 (400 feedbacks).
+    assert mixture[0] > 0.3 and max(mixture[1:]) < -0.55
+    assert mixture[0] - max(mixture[1:]) > 1.0
+    # Deep TAMER's: the good action takes its neighbours' verdicts, and hardly stands out.
+    assert each[0] < 0.2 and each[0] - max(each[1:]) < 0.6
+
+
+def test_a_feedback_with_one_step_is_the_plain_squared_error():
+    judged, h = torch.tensor([0.5, -0.2]), torch.tensor([1.0, -1.0])
+    assert mixture_mse(judged, h, torch.ones(2), torch.tensor([0, 1])).item() == pytest.approx(
+        ((0.5 - 1.0) ** 2 + (-0.2 + 1.0) ** 2) / 2)
+
+
+def test_the_mixture_learner_trains_on_whole_feedbacks():
+    buffer = FeedbackBuffer(1000, (FEATURE_SIZE,), np.float32)
+    for seq in range(1, 21):
+        buffer.extend([sample(i, 1.0, 0.25, seq=seq, stamp=i) for i in range(4)])
+    batch = buffer.sample_feedback(5, np.random.default_rng(0))
+    assert len(batch.actions) == 20 and int(batch.groups.max()) == 4
+    assert torch.bincount(batch.groups).tolist() == [4] * 5
+    learner = Learner(HModel(freeze_encoder=True, encoder=Encoder()), credit_loss='mixture')
+    loss, mse, _ = learner.loss(batch)
+    predicted = learner.predict(batch.states).gather(1, batch.actions.unsqueeze(1)).squeeze(1)
+    expected = mixture_mse(predicted, batch.h, batch.weights, batch.groups)
+    assert mse.item() == pytest.approx(expected.item())
+    assert collate([sample(0, 1.0, 1.0, seq=5), sample(1, 1.0, 1.0, seq=9)]).groups.tolist() \
+        == [0, 1]
+
+
+# Decisions held, ties kept.
+def play_actions(tmp_path: Path, **changes):
+    frames = np.random.default_rng(0).integers(0, 256, (12, 210, 160, 3), np.uint8)
+    config = TamerConfig(run_dir=str(tmp_path), greedy_margin=2.0, pace_updates=0.0,
+                         checkpoint_period_s=0.0, **changes)  # margin 2: every action tied
+    agent = TamerAgent(config, tmp_path, encoder=Encoder())
+    agent.start()
+    try:
+        actions = [agent.on_observation((i + 1) * 66_666_667, frames[i]) for i in range(12)]
+        return actions, agent.counters['act/held']
+    finally:
+        agent.close()
+
+
+def test_a_decision_is_held_for_decision_period_s(tmp_path):
+    actions, held = play_actions(tmp_path / 'held', decision_period_s=0.2)  # 3 steps of 15 Hz
+    decisions = [actions[i:i + 3] for i in range(0, 12, 3)]
+    assert all(len(set(d)) == 1 for d in decisions) and held == 8
+    free, _ = play_actions(tmp_path / 'free')  # every step its own (random) choice
+    assert any(len(set(free[i:i + 3])) > 1 for i in range(0, 12, 3))
+
+
+def test_a_tie_that_includes_the_previous_action_keeps_it():
+    actor = ActingModel(HModel(), greedy_margin=0.1, seed=0, keep_tied=True)
+    tied = torch.full((NUM_ACTIONS,), -1.0)
+    first = actor.choose(tied)
+    assert {actor.choose(tied) for _ in range(50)} == {first}
+    better = tied.clone()
+    better[(first + 1) % NUM_ACTIONS] = 0.5
+    assert actor.choose(better) == (first + 1) % NUM_ACTIONS  # a clear best still wins
+    loose = ActingModel(HModel(), greedy_margin=0.1, seed=0)
+    assert len({loose.choose(tied) for _ in range(50)}) > 1
+
+
+def test_with_held_decisions_late_credit_lands_on_the_steps_that_chose(tmp_path):
+    config = TamerConfig(run_dir=str(tmp_path), credit='window', window_min_s=0.2,
+                         window_max_s=1.6, decision_period_s=0.2, pace_updates=0.0,
+                         checkpoint_period_s=0.0, update_rate_hz=0.0)
+    agent = TamerAgent(config, tmp_path, encoder=Encoder())
+    agent.start()
+    frames = np.random.default_rng(1).integers(0, 256, (4, 210, 160, 3), np.uint8)
+    stamps = [(i + 1) * 66_666_667 for i in range(60)]
+    try:
+        for i, stamp in enumerate(stamps):
+            agent.on_observation(stamp, frames[i % 4])
+        agent.on_feedback(1.0, 'plain')
+        deadline = time.monotonic() + 10
+        while not len(agent.buffer) and time.monotonic() < deadline:
+            time.sleep(0.01)
+        credited = agent.buffer.samples()
+    finally:
+        agent.close()
+    chose = set(stamps[::3])  # the first step of every decision
+    assert credited and {s.stamp for s in credited} <= chose
+    assert sum(s.weight for s in credited) == pytest.approx(1.0, abs=1e-5)
+    assert 6 <= len(credited) <= 9  # 1.4 s of 15 Hz steps in decisions of 3, not 21 steps
+
+
+def test_a_resume_finds_the_decisions_the_acting_path_made():
+    history = StepHistory(100)
+    step = 66_666_667
+    for i in range(7):
+        history.set_action((i + 1) * step, i % 2)
+    history.mark_decisions(lambda decision, stamp: holds(decision, stamp, 0.2))
+    assert [r.decision // step for r in history.records()] == [1, 1, 1, 4, 4, 4, 7]
+    assert not holds(None, step, 0.2) and not holds(step, 2 * step, 0.0)
+    assert holds(step, 3 * step, 0.2) and not holds(step, 4 * step, 0.2)
