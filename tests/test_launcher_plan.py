@@ -227,19 +227,19 @@ def test_the_thesis_trainer_is_one_option_away_and_human_like_is_named(tmp_path)
         parse_options(['--trainer', 'oracle'])
 
 
-def test_late_feedback_gets_credit_by_prediction_unless_asked_for_the_plain_window(tmp_path):
+def test_the_late_learner_is_one_option_away_with_late_feedback(tmp_path):
     for options in ({'human_like': True}, {'synthetic': False}):
-        tamer = _plan(tmp_path, **options).effective['tamer_node']
-        assert (tamer['credit'], tamer['credit_posterior'], tamer['keep_tied_action']) == (
-            'window', True, True)
-    for extra in ({'plain_credit': True}, {'thesis_learner': True}):
-        tamer = _plan(tmp_path, human_like=True, **extra).effective['tamer_node']
-        assert not set(LATE_FEEDBACK_LEARNER) & set(tamer)  # the config's defaults: off
-    every_step = _plan(tmp_path).effective['tamer_node']  # stamped: nothing to attribute
-    assert not set(LATE_FEEDBACK_LEARNER) & set(every_step)
-    defaults = TamerConfig()
-    assert all(getattr(defaults, name) is False for name in LATE_FEEDBACK_LEARNER)
-    assert parse_options(['--human-like', '--plain-credit']).plain_credit
+        tamer = _plan(tmp_path, late_learner=True, **options).effective['tamer_node']
+        assert tamer['credit'] == 'window'
+        assert {name: tamer[name] for name in LATE_FEEDBACK_LEARNER} == LATE_FEEDBACK_LEARNER
+        plain = _plan(tmp_path, **options).effective['tamer_node']  # Deep TAMER's window
+        assert not set(LATE_FEEDBACK_LEARNER) & set(plain)
+    for extra in ({}, {'thesis_learner': True}):  # stamped feedback, or the thesis's learner
+        tamer = _plan(tmp_path, late_learner=True, human_like=bool(extra), **extra)
+        assert not set(LATE_FEEDBACK_LEARNER) & set(tamer.effective['tamer_node'])
+    defaults = TamerConfig()  # each one a real parameter, whose default is the thesis's
+    assert all(getattr(defaults, name) != value for name, value in LATE_FEEDBACK_LEARNER.items())
+    assert parse_options(['--human-like', '--late-learner']).late_learner
 
 
 def test_seed_of_the_run_dir_comes_from_the_files(tmp_path):

@@ -3,7 +3,7 @@
 from pathlib import Path
 import time
 
-from attention_common.joy_actions import NUM_ACTIONS
+from attention_common.joy_actions import ACTION_MEANINGS, NUM_ACTIONS
 import numpy as np
 import pytest
 from tamer_node.acting import ActingModel
@@ -12,8 +12,8 @@ from tamer_node.buffer import collate, FeedbackBuffer, Sample
 from tamer_node.config import TamerConfig
 from tamer_node.history import holds, StepHistory
 from tamer_node.learner import Learner, mixture_mse
-from tamer_node.model import Encoder, FEATURE_SIZE, HModel
-from tamer_node.pairing import by_prediction
+from tamer_node.model import Encoder, FEATURE_SIZE, HModel, joystick_parts, PartsHead
+from tamer_node.pairing import by_prediction, to_decisions
 from tamer_node.posterior import feedback_likelihood, posterior_weights
 import torch
 
@@ -227,3 +227,40 @@ def test_a_resume_finds_the_decisions_the_acting_path_made():
     assert [r.decision // step for r in history.records()] == [1, 1, 1, 4, 4, 4, 7]
     assert not holds(None, step, 0.2) and not holds(step, 2 * step, 0.0)
     assert holds(step, 3 * step, 0.2) and not holds(step, 4 * step, 0.2)
+
+
+def test_a_step_the_world_did_otherwise_keeps_its_own_credit():
+    history = StepHistory(100)
+    for stamp in (1, 2, 3):
+        history.set_action(stamp, GOOD, decision=1)
+    history.set_taken(3, BAD)  # a replay: the session's world executed another action
+    assert to_decisions({1: 0.2, 2: 0.3, 3: 0.5}, history) == {1: 0.5, 3: 0.5}
+
+
+def moved_by_a_verdict_on_upright(head):
+    """Return the last layer's change on RIGHT and DOWNLEFTFIRE after 'UPRIGHT is bad'."""
+    torch.manual_seed(0)
+    x = torch.randn(1, 64)
+    optimizer = torch.optim.SGD(head.parameters(), lr=0.002)
+    before = head(x).detach()[0]
+    upright = ACTION_MEANINGS.index('UPRIGHT')
+    for _ in range(10):
+        loss = (head(x)[0, upright] + 1.0) ** 2
+        optimizer.zero_grad()
+        loss.backward()
+        optimizer.step()
+    change = head(x).detach()[0] - before
+    return (float(change[ACTION_MEANINGS.index('RIGHT')]),
+            float(change[ACTION_MEANINGS.index('DOWNLEFTFIRE')]))
+
+
+def test_shared_joystick_parts_carry_a_verdict_to_the_actions_that_share_them():
+    torch.manual_seed(1)
+    right, unrelated = moved_by_a_verdict_on_upright(
+        PartsHead(64, joystick_parts(range(NUM_ACTIONS))))
+    assert right < -0.1 and unrelated == pytest.approx(0.0, abs=1e-6)  # shares no part
+    alone = moved_by_a_verdict_on_upright(torch.nn.Linear(64, NUM_ACTIONS))  # the thesis's
+    assert alone == pytest.approx((0.0, 0.0), abs=1e-6)
+    model = HModel(parts=joystick_parts(range(NUM_ACTIONS)))
+    assert isinstance(model.head[2], PartsHead) and model.from_features(
+        torch.zeros(2, FEATURE_SIZE)).shape == (2, NUM_ACTIONS)

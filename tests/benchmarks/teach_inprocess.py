@@ -10,7 +10,10 @@ updates per step it gets in the graph (about 100 steps/s there).
 
 For late (plain) feedback it also measures the credit window's *label purity*: the share of
 each feedback's credit that lands on steps where the agent did what the teacher judged, and the
-share on the judged step itself.
+share on the judged step itself; and the same of what the learner holds at the end
+(``learned_purity``: after credit by prediction or decisions). ``furthest_stage`` is the furthest
+stage of the expert's route the agent was in. ``--knob`` changes a human-like knob of the
+teacher (``--knob feedback_delay_max=0 --knob feedback_delay_min=0``: on time and stamped).
 
 Used to find what stops Deep TAMER from learning the route (``docs/teaching.md``, the
 ablation); the targets themselves are measured through the graph (``attention_teaching``).

@@ -41,7 +41,7 @@ from tamer_node.history import StepHistory
 from tamer_node.intake import FeedbackIntake
 from tamer_node.learner import Learner
 from tamer_node.learner_loop import LearnerWorker
-from tamer_node.model import Encoder, FEATURE_SIZE, HModel, load_encoder
+from tamer_node.model import Encoder, FEATURE_SIZE, HModel, joystick_parts, load_encoder
 from tamer_node.persistence import DiskWriter, FeedbackLog, MetricsCsv, StepJournal
 import torch
 
@@ -102,7 +102,9 @@ class TamerAgent:
         torch.manual_seed(config.seed)
         self.task = load_task(config.task)
         model = HModel(config.head_hidden, freeze_encoder=not config.fine_tune_encoder,
-                       encoder=encoder, num_actions=self.task.num_actions)
+                       encoder=encoder, num_actions=self.task.num_actions,
+                       parts=(joystick_parts(self.task.joy_actions)
+                              if config.share_action_parts else None))
         self.learner = Learner(model, config.learning_rate, config.alpha, config.max_grad_norm,
                                config.credit_loss)
         self.actor = ActingModel(model, config.greedy_margin, config.seed,

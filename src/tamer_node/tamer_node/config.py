@@ -83,6 +83,10 @@ class TamerConfig:
     """Image the agent acts and learns on: 'observation' or the step's 'saliency' image."""
     head_hidden: int = 64
     """Hidden units of H's fully connected head."""
+    share_action_parts: bool = False
+    """Each action's output adds weights shared with the actions that have the same joystick
+    part (horizontal, vertical, button; model.PartsHead): a verdict on UPRIGHT also teaches
+    RIGHT and UP a little. False: 18 independent outputs (the thesis's)."""
     decision_period_s: float = 0.0
     """Simulation seconds one decision lasts at least: the greedy action is chosen on a step and
     held on the next observations until this much time has passed (0 = a decision every step,

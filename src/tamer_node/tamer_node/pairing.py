@@ -54,14 +54,16 @@ def to_decisions(steps: Dict[int, float], history: StepHistory) -> Dict[int, flo
     Move each step's credit to the step that chose its action (``decision_period_s`` > 0).
 
     A held action is one decision, made on the state of its first step: that is the (s, a)
-    the agent acts on, so that is what a verdict on any of its steps labels. Steps of a
-    decision whose first step is no longer held keep their own credit.
+    the agent acts on, so that is what a verdict on any of its steps labels. A step keeps its
+    own credit when its decision's first step is no longer held, or was learned on another
+    action (a replay's ``action_taken``: the world did not hold the agent's decision).
     """
     decided: Dict[int, float] = collections.defaultdict(float)
     for stamp, weight in steps.items():
         record = history.get(stamp)
         first = record.decision if record is not None else None
-        if first is None or history.get(first) is None:
+        chose = history.get(first) if first is not None else None
+        if chose is None or chose.learned_action != record.learned_action:
             first = stamp
         decided[first] += weight
     return dict(decided)

@@ -183,7 +183,7 @@ def write(path: Path, out_dir: Path, result: Mapping, by_setting: Mapping, optio
                         'agreement', 'lives lost', 'furthest stage', 'label purity',
                         'command'], rows)
         text += ['', 'Each row: `tests/benchmarks/teach_inprocess.py` with the real game, the '
-                 'teacher and TamerAgent in one process, 10,000 steps per trial, seeds 100-105 '
+                 'teacher and TamerAgent in one process, 10,000 steps per trial, seeds 100-107 '
                  '(tuning seeds). *Agreement*: the share of judged actions the teacher '
                  "counted as the expert's. *Furthest stage*: the furthest stage of the "
                  "expert's route the agent was in (0 walk to the middle ladder ... 6 the floor, "

@@ -26,20 +26,20 @@ SETTINGS: Dict[str, Setting] = {
         'The same teacher; it also speaks its stage sentence every 10 s (language saliency, '
         'alpha 1e-4).'),
     'human_like_vanilla': Setting(
-        'vanilla', ('--trainer', 'teacher', '--human-like', '--plain-credit'),
+        'vanilla', ('--trainer', 'teacher', '--human-like'),
         'Teacher on a third of the steps, 0.3-1.5 s late, 10 % of signs wrong, plain feedback '
         'credited by the window (0.2-1.6 s); Deep TAMER alone.'),
     'human_like_language': Setting(
-        'language', ('--trainer', 'teacher', '--human-like', '--plain-credit'),
-        'The same human-like teacher, speaking every 10 s (language saliency, alpha 1e-4).'),
-    'human_like_vanilla_posterior': Setting(
-        'vanilla', ('--trainer', 'teacher', '--human-like'),
-        'The human-like teacher; the learner for late feedback (issue 23): credit by prediction '
-        "(each step's window weight times how likely H finds the verdict there) and ties kept; "
-        'Deep TAMER alone.'),
-    'human_like_language_posterior': Setting(
         'language', ('--trainer', 'teacher', '--human-like'),
-        'As human_like_vanilla_posterior, the teacher speaking every 10 s (language saliency, '
+        'The same human-like teacher, speaking every 10 s (language saliency, alpha 1e-4).'),
+    'human_like_vanilla_late_learner': Setting(
+        'vanilla', ('--trainer', 'teacher', '--human-like', '--late-learner'),
+        'The human-like teacher; the learner for late feedback (issue 23): decisions of 0.2 s '
+        "credited on the step that chose, the mixture loss (the window's credit-weighted mean "
+        'of H fitted to h), ties kept; Deep TAMER alone.'),
+    'human_like_language_late_learner': Setting(
+        'language', ('--trainer', 'teacher', '--human-like', '--late-learner'),
+        'As human_like_vanilla_late_learner, the teacher speaking every 10 s (language saliency, '
         'alpha 1e-4).'),
 }
 """The arms, in report order."""
@@ -55,7 +55,7 @@ SETTINGS.update(THESIS_LEARNER)
 
 COMPARISONS = (('every_step_language', 'every_step_vanilla'),
                ('human_like_language', 'human_like_vanilla'),
-               ('human_like_language_posterior', 'human_like_vanilla_posterior'))
+               ('human_like_language_late_learner', 'human_like_vanilla_late_learner'))
 """(language, its vanilla baseline) pairs tested against each other."""
 
 SEEDS = tuple(range(1000, 1010))
@@ -63,5 +63,5 @@ SEEDS = tuple(range(1000, 1010))
 teacher were tuned in one process on seeds 100-105: ``tests/benchmarks/teach_inprocess.py``)."""
 
 TARGETS = {'every_step_vanilla': (9, 3000), 'human_like_vanilla': (7, None),
-           'human_like_vanilla_posterior': (8, 5000)}
+           'human_like_vanilla_late_learner': (8, 5000)}
 """Issue targets: (keys in at least this many of 10 trials, median steps to the key at most)."""
