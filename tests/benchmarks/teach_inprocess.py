@@ -104,6 +104,10 @@ def run_trial(seed: int, steps: int, human_like: bool, overrides: dict, pace: fl
         newest = step.sim_time_ns  # what the agent stamps plain feedback with (its newest)
         step = env.step(action)
         feedback = see(step)
+        ended = step
+        if step.done:  # the teacher's due feedback at the reset goes out too, as in the graph
+            step = env.reset()
+            feedback += see(step)
         for judgement in feedback:
             if stamped:
                 agent.on_feedback(judgement.h, 'stamped', judgement.stamp_ns)
@@ -111,17 +115,13 @@ def run_trial(seed: int, steps: int, human_like: bool, overrides: dict, pace: fl
                 agent.on_feedback(judgement.h, 'plain')
                 credit_check(judgement, newest)
                 judged_plain.append((judgement.stamp_ns, judgement.action))
-        if step.state.has_key and not had_key:
+        if ended.state.has_key and not had_key:
             keys += 1
             first_key = first_key or t
-        had_key = step.state.has_key
-        lives_lost += int(step.life_lost)
+        had_key = ended.state.has_key and not ended.done
+        lives_lost += int(ended.life_lost)
         if teacher.expert.phase in route:
             furthest = max(furthest, route.index(teacher.expert.phase))
-        if step.done:
-            step = env.reset()
-            had_key = False
-            see(step)
         counts = teacher.counts
         if t % 500 == 0:
             judged, agreed = counts['judged'] - window[0], counts['agreed'] - window[1]

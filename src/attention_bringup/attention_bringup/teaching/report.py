@@ -186,9 +186,11 @@ def write(path: Path, out_dir: Path, result: Mapping, by_setting: Mapping, optio
                  'teacher and TamerAgent in one process, 10,000 steps per trial, seeds 100-107 '
                  '(tuning seeds). *Agreement*: the share of judged actions the teacher '
                  "counted as the expert's. *Furthest stage*: the furthest stage of the "
-                 "expert's route the agent was in (0 walk to the middle ladder ... 6 the floor, "
-                 '7 up the left ladder, 8 to the key, 9 the key), mean of the trials. *Label '
-                 "purity*: of each late feedback's weight in the learner's buffer at the end "
+                 "expert's route the agent's position was in (0 walk to the middle ladder ... "
+                 '6 the floor, 7 up the left ladder, 8 to the key, 9 the key), mean of the '
+                 'trials; at any moment, in mid-air or dying too (a fall to the floor counts), '
+                 "so like 'furthest passed' it overstates progress. *Label purity*: of each "
+                 "late feedback's weight in the learner's buffer at the end "
                  '(after any credit by prediction), the share on steps that did the judged '
                  'action. Both are recorded by runs from issue 23 on.', '']
     discussion = out_dir / 'discussion.md'
