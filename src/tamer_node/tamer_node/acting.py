@@ -147,8 +147,10 @@ class ActingPath:
         """The newest observation stamp (what a plain feedback is stamped with)."""
         self.act_seconds = collections.deque(maxlen=1000)
         """The last 1000 acts' latencies."""
-        self.on_acted: Optional[Callable[[int, int, torch.Tensor], None]] = None
-        """Called on the acting thread with (stamp, action, H of every action) after each act."""
+        self.acted: 'collections.deque[Tuple[int, int, torch.Tensor]]' = collections.deque(
+            maxlen=16)
+        """(stamp, action, H of every action) of the newest acts, for a viewer; the node takes
+        them after it has published the action (``action_values``), so they never delay it."""
         self._held: Optional[int] = None  # the decision being held (decision_period_s)
         self._decision: Optional[int] = None  # the stamp of the step that chose it
 
@@ -305,6 +307,5 @@ class ActingPath:
         if started is not None:
             self.act_seconds.append(time.perf_counter() - started)
         self.counters['act/count'] += 1
-        if self.on_acted is not None:
-            self.on_acted(record.stamp, action, values)
+        self.acted.append((record.stamp, action, values))
         return action

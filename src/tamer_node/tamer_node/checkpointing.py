@@ -186,7 +186,7 @@ def journal_histories(records: Iterable,
     Return the journal's steps as one unbounded StepHistory per session.
 
     With ``decision_period_s`` > 0 the acted steps of each session are grouped into decisions
-    as the acting path made them (``acting.holds``).
+    as the acting path made them (``history.holds``).
     """
     sessions: Dict[int, StepHistory] = {}
     for session, kind, stamp, action, image in records:

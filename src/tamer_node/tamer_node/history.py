@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import threading
 from typing import Callable, Dict, List, Optional
 
-from tamer_node.credit import Span, spans_from_stamps
+from tamer_node.credit import NS_PER_S, Span, spans_from_stamps
 import torch
 
 IMAGE_KINDS = ('observation', 'saliency')
@@ -24,7 +24,7 @@ def holds(decision: Optional[int], stamp: int, period_s: float) -> bool:
     """Tell whether the decision made at stamp ``decision`` still holds at ``stamp``."""
     if decision is None or period_s <= 0.0 or stamp < decision:
         return False
-    return stamp - decision < int(round(period_s * 1e9)) - DECISION_SLACK_NS
+    return stamp - decision < int(round(period_s * NS_PER_S)) - DECISION_SLACK_NS
 
 
 @dataclass

@@ -16,7 +16,7 @@ what H needs (the thesis found the agent's position is nearly all that matters).
 
 from typing import Optional
 
-from attention_common.joy_actions import NUM_ACTIONS
+from attention_common.joy_actions import action_to_joy, NUM_ACTIONS
 import cv2
 import numpy as np
 import torch
@@ -168,7 +168,6 @@ class PartsHead(nn.Module):
 
 def joystick_parts(joy_actions) -> list:
     """Return the (horizontal, vertical, button) indices of each action's joystick action."""
-    from attention_common.joy_actions import action_to_joy
     parts = []
     for joy in joy_actions:
         (horizontal, vertical), (fire,) = action_to_joy(joy)

@@ -70,7 +70,6 @@ class TamerNode(Node):
                                                 qos.ACTION_VALUES)
         self.credit_pub = self.create_publisher(DiagnosticArray, topics.FEEDBACK_CREDIT,
                                                 qos.HUMAN)
-        self.agent.acting.on_acted = self._publish_values
         self.agent.worker.on_credit = self._publish_credit
         self.create_subscription(Image, topics.OBSERVATION, self._on_observation, qos.FRAMES)
         self.create_subscription(Image, topics.SALIENCY, self._on_saliency, qos.FRAMES)
@@ -153,6 +152,7 @@ class TamerNode(Node):
             return
         if action is not None:
             self._publish_action(msg.header, action)
+            self._publish_values()
 
     def _on_action_taken(self, msg: Joy) -> None:
         try:
@@ -172,6 +172,7 @@ class TamerNode(Node):
         for stamp, action in self.agent.act_overdue():
             header = Header(stamp=ns_to_stamp(stamp), frame_id=self._frame_id)
             self._publish_action(header, action)
+        self._publish_values()
 
     def _publish_action(self, header: Header, action: int) -> None:
         joy = Joy()
@@ -213,10 +214,16 @@ class TamerNode(Node):
         array.header.stamp = self.get_clock().now().to_msg()
         self.logged_pub.publish(array)
 
-    def _publish_values(self, stamp: int, action: int, values) -> None:
-        """On the acting thread: H of every action and the one taken, while anyone listens."""
+    def _publish_values(self) -> None:
+        """After an action went out: H of every action and the one taken, while anyone listens."""
+        acted = self.agent.acting.acted
         if not self.values_pub.get_subscription_count():
-            return  # a lockstep run without a viewer pays nothing for it
+            acted.clear()  # a lockstep run without a viewer pays nothing for it
+            return
+        while acted:
+            self._publish_step_values(*acted.popleft())
+
+    def _publish_step_values(self, stamp: int, action: int, values) -> None:
         names = self.agent.task.action_names
         status = DiagnosticStatus(level=DiagnosticStatus.OK, name='action_values',
                                   hardware_id='tamer_node', message=names[action])

@@ -121,7 +121,6 @@ class LearnerView:
         self.presses_kept, self.others_kept = presses_kept, others_kept
         self._lock = threading.Lock()
         self._steps: List[StepValues] = []  # by stamp
-        self._stamps: List[int] = []
         self._ours: Dict[int, Credit] = collections.OrderedDict()
         self._others: Dict[int, Credit] = collections.OrderedDict()
         self._our_seqs: collections.deque = collections.deque(maxlen=presses_kept)
@@ -137,16 +136,16 @@ class LearnerView:
         except Malformed as error:
             return self._bad('action_values', error)
         with self._lock:
-            if self._stamps and step.stamp < self._stamps[-1] - MAX_STAMP_JUMP_S * NS_PER_S:
-                self._steps, self._stamps = [], []  # the stamps started over: a new env
-            i = bisect.bisect_left(self._stamps, step.stamp)
-            if i < len(self._stamps) and self._stamps[i] == step.stamp:
-                self._steps[i] = step
+            steps = self._steps
+            if steps and step.stamp < steps[-1].stamp - MAX_STAMP_JUMP_S * NS_PER_S:
+                steps.clear()  # the stamps started over: a new env
+            i = bisect.bisect_left(steps, step.stamp, key=_stamp)
+            if i < len(steps) and steps[i].stamp == step.stamp:
+                steps[i] = step
             else:
-                self._steps.insert(i, step)
-                self._stamps.insert(i, step.stamp)
-            if len(self._steps) > self.steps_kept:
-                del self._steps[:-self.steps_kept], self._stamps[:-self.steps_kept]
+                steps.insert(i, step)
+            if len(steps) > self.steps_kept:
+                del steps[:-self.steps_kept]
         return None
 
     def on_credit(self, status: Optional[tuple]) -> Optional[str]:
@@ -183,8 +182,8 @@ class LearnerView:
     def view(self, frame: Optional[int] = None) -> dict:
         """Return H of the frame ``frame`` (or the newest step not newer) and the strip."""
         with self._lock:
-            end = len(self._stamps) if frame is None else bisect.bisect_right(self._stamps,
-                                                                              frame)
+            end = (len(self._steps) if frame is None
+                   else bisect.bisect_right(self._steps, frame, key=_stamp))
             strip = self._steps[max(0, end - self.strip_steps):end]
             ours = sorted(self._ours.values(), key=lambda credit: credit.seq)
             waiting = [seq for seq in self._our_seqs if seq not in self._ours]
@@ -230,6 +229,10 @@ def strip_cells(stamps: Sequence[int], credits: Iterable[Credit]) -> List[list]:
                 cells[stamp] = [index[stamp], str(stamp), credit.seq, sign,
                                 round(weight / top, 3)]
     return sorted(cells.values())
+
+
+def _stamp(step: StepValues) -> int:
+    return step.stamp
 
 
 def _summary(credit: Credit) -> dict:
