@@ -243,7 +243,9 @@ def test_the_teacher_survives_bad_env_status_among_a_real_envs(probe, start_node
     trainer = start_node('feedback_node', {'trainer': 'teacher', 'summary_period': 0.5,
                                            'utterance_interval': -1.0})
     env = start_node('env_node', {'warmup_steps': 0, 'action_timeout': 30.0})
-    assert probe.wait_for_subscribers(injected, timeout=STARTUP_S)
+    # The probe hears env_status itself: wait for the teacher too (2), or the bad statuses may
+    # go out before the teacher has matched.
+    assert probe.wait_for_subscribers(injected, count=2, timeout=STARTUP_S)
     assert probe.wait_for_subscribers(actions, timeout=STARTUP_S)
 
     def play(steps):

@@ -93,7 +93,10 @@ def start_graph(probe, start_node, teacher_params):
     teacher = start_node('feedback_node', dict({'trainer': 'teacher'}, **teacher_params))
     assert teacher.wait_for_log('teacher: judges each action', STARTUP_S), teacher.log_text()
     assert wait_until(lambda: probe.node.count_subscribers(topics.ENV_STATUS) >= 2, STARTUP_S)
-    start_node('env_node', {'warmup_steps': 0, 'sticky_actions': 0.0, 'seed': 0})
+    # env_node steps once the teacher (and the probe) hear its env_status: lockstep plays 120
+    # steps in about a second, faster than a late DDS match.
+    start_node('env_node', {'warmup_steps': 0, 'sticky_actions': 0.0, 'seed': 0,
+                            'wait_status_subscribers': 2})
     return player, teacher, feedback_stamped, feedback, utterances
 
 

@@ -36,6 +36,8 @@ class EnvNodeConfig:
     while DDS discovery runs."""
     wait_position_subscribers: int = 0
     """Start-up: likewise for agent_position (graph.yaml: 1, the synthetic trainer)."""
+    wait_status_subscribers: int = 0
+    """Start-up: likewise for env_status (the teacher judges from it; 0 = do not wait)."""
     paused: bool = False
     """true: no steps are taken (real time: the timer skips; lockstep: the answer waits until
     resumed) and simulation time stands still. Settable at run time (the trainer console pauses

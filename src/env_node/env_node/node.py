@@ -49,7 +49,7 @@ LOG_THROTTLE_S = 5.0
 class EnvNode(Node):
     """Publishes each step of the game; applies the Joy actions that answer it."""
 
-    OBS, POSITION = topics.OBSERVATION, topics.AGENT_POSITION
+    OBS, POSITION, STATUS = topics.OBSERVATION, topics.AGENT_POSITION, topics.ENV_STATUS
 
     def __init__(self, **kwargs):
         super().__init__('env_node', **kwargs)
@@ -66,7 +66,8 @@ class EnvNode(Node):
         self._action_timeout = config.action_timeout
         self._max_steps = config.max_steps
         self._wait_subscribers = ((self.OBS, config.wait_observation_subscribers),
-                                  (self.POSITION, config.wait_position_subscribers))
+                                  (self.POSITION, config.wait_position_subscribers),
+                                  (self.STATUS, config.wait_status_subscribers))
         self.get_logger().info(f'starting {task.env_id} (task {task.name}), '
                                f'{world.warmup_steps} warm-up steps')
         try:
@@ -215,7 +216,8 @@ class EnvNode(Node):
     def _missing_subscribers(self) -> str:
         """Describe the start-up subscribers not yet matched ('' when all are)."""
         counts = {self.OBS: self._obs_pub.get_subscription_count(),
-                  self.POSITION: self._position_pub.get_subscription_count()}
+                  self.POSITION: self._position_pub.get_subscription_count(),
+                  self.STATUS: self._status_pub.get_subscription_count()}
         return ', '.join(f'{topic} has {counts[topic]} of {wanted}'
                          for topic, wanted in self._wait_subscribers if counts[topic] < wanted)
 
