@@ -291,6 +291,10 @@ def test_doorkey_trains_through_the_real_graph(tmp_path):
     assert summary['status'] == 'completed' and summary['steps'] == STEPS
     assert summary['task'] == 'doorkey' and summary['milestones'] == ['key', 'door', 'goal']
     assert summary['exit_codes'] == dict.fromkeys(NODES, 0)
+    # DoorKey's own terms, none of Room 1's (held-out layouts come only later in a run).
+    assert set(summary['milestone_steps']) == {'key', 'door', 'goal'}
+    assert summary['heldout_episodes'] == summary['heldout_episodes_solved'] == 0
+    assert 'first_key_step' not in summary and 'furthest_position' not in summary
     params = yaml.safe_load((run_dir / 'params.yaml').read_text())
     for node in NODES:
         assert params[node]['ros__parameters']['task'] == 'doorkey', node

@@ -16,7 +16,7 @@ from attention_bringup.progress import (
     ALIVE_STEPS, format_bar, parse_value, ProgressTracker, RECENT_ROWS, RECENT_STAMPS)
 from attention_bringup.report import ProgressWriter, read_rows_for_plot
 from attention_common.run_files import node_log, of_session, OVERRIDES_FILE
-from attention_tasks.montezuma.critical_positions import DEFAULT_RADIUS
+from attention_tasks.montezuma.critical_positions import CRITICAL_POSITIONS, DEFAULT_RADIUS
 from feedback_node.teacher import TRAINERS
 import pytest
 from saliency_node.saliency import BLUR_RADIUS
@@ -514,6 +514,36 @@ def test_the_tracker_counts_another_tasks_milestones_and_solved_episodes():
     assert [row['heldout'] for row in rows] == [0, 0, 0, 0, 1]
     assert tracker.furthest == 2 and tracker.first_step_at == {0: 2, 1: 3, 2: 4}
     assert tracker.solved_episodes == {(1, 0)}
+
+
+def test_a_summary_measures_each_task_in_its_own_terms():
+    from attention_bringup.launcher import task_measures
+    from attention_tasks.task import load_task
+    doorkey = load_task('doorkey')
+    tracker = ProgressTracker(milestone_of=lambda values: doorkey.milestone_of(values, 0.0),
+                              solved_of=doorkey.solved)
+    # Episode 0 trains and is solved; held-out episode 1 is solved, held-out episode 2 is not.
+    steps = [(1, 0, 0), (2, 0, 0), (3, 0, 0), (0, 1, 1), (3, 1, 1), (2, 2, 1)]
+    for step, (subgoals, episode, heldout) in enumerate(steps, 1):
+        tracker.on_status(step * 10**9, {'agent_step': step, 'subgoals': subgoals,
+                                         'at_goal': subgoals == 3, 'episode': episode,
+                                         'heldout': heldout}, 0.0)
+    measures = task_measures(doorkey, tracker)
+    assert measures == {
+        'milestones': ['key', 'door', 'goal'],
+        'milestone_steps': {'key': 1, 'door': 2, 'goal': 3},
+        'furthest_milestone': 'goal', 'episodes': 3, 'episodes_solved': 2,
+        'heldout_episodes': 2, 'heldout_episodes_solved': 1}  # no Room 1 names
+
+    room = load_task('montezuma')
+    tracker = ProgressTracker(milestone_of=lambda values: room.milestone_of(values, 8.0))
+    x, y = CRITICAL_POSITIONS[1]
+    tracker.on_status(10**9, {'agent_step': 1, 'x': x, 'y': y, 'room': 1, 'episode': 0}, 0.0)
+    measures = task_measures(room, tracker)
+    assert measures['milestone_steps']['critical position 1'] == 1
+    assert measures['furthest_milestone'] == 'critical position 1'
+    assert measures['furthest_position'] == 1 and measures['first_step_at_position'] == {'1': 1}
+    assert 'heldout_episodes' not in measures and measures['first_key_step'] is None
 
 
 @pytest.mark.parametrize('synthetic, record, records', [

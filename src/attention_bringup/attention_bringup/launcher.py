@@ -20,11 +20,11 @@ from pathlib import Path
 import re
 import signal
 import sys
-import threading
 import time
 from typing import Optional
 
 from attention_bringup import report
+from attention_bringup.driver import Driver
 from attention_bringup.gallery import GalleryCollector
 from attention_bringup.graph import NODES
 from attention_bringup.params import ParamsFileError
@@ -34,13 +34,11 @@ from attention_bringup.plan import (
 from attention_bringup.processes import (
     cpu_seconds, exit_description, log_tail, node_environ, NodeGroup, resident_memory_kb)
 from attention_bringup.progress import format_bar, ProgressTracker
-from attention_common.dds_memory import use_freed_payloads
-from attention_common.executors import make_executor
-from attention_common.isolation import apply_to_this_process, reserved_domain
+from attention_common.isolation import reserved_domain
 from attention_common.run_files import (
     CHECKPOINT_DIR, FEEDBACK_LOG, GALLERY_FILE, LEARNING_CURVE_FILE, LOGS_DIR, METRICS_CSV,
     of_session, OPTIONS_FILE, OVERRIDES_FILE, PARAMS_FILE, PIDS_FILE, PROGRESS_FILE, SUMMARY_FILE)
-from attention_tasks.task import load_task
+from attention_tasks.task import load_task, ROOM_1
 from session_bag import info as bag_info
 from session_bag.reader import ends_whole, storage_path
 from session_bag.repair import repair
@@ -105,16 +103,8 @@ class Launcher:
                 signal.signal(sig, handler)
 
     def _run(self) -> int:
-        import rclpy
-        from rclpy.context import Context
-        from rclpy.signals import SignalHandlerOptions
+        from attention_bringup.monitor import GraphMonitor
 
-        from attention_bringup.monitor import GraphMonitor, spin_until_shutdown
-
-        apply_to_this_process(self.domain_id)
-        use_freed_payloads()
-        context = Context()
-        rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)
         radius = self.plan.critical_radius  # the feedback node's, so progress agrees with it
         task = load_task(self.plan.options.task)
         tracker = ProgressTracker(milestone_of=functools.partial(task.milestone_of,
@@ -126,23 +116,27 @@ class Launcher:
         if continuation.session > 1 and progress_file.exists():
             tracker.resume_from(report.read_progress_rows(progress_file))
         tracker.session = continuation.session
-        gallery = GalleryCollector()
-        monitor = GraphMonitor(tracker, gallery, watch_plain=not self.plan.options.synthetic,
-                               context=context)
-        executor = make_executor(context=context)  # spun on a thread: spin_once, as it must
-        executor.add_node(monitor)
-        spinner = threading.Thread(target=spin_until_shutdown,
-                                   args=(executor, context, self.err), daemon=True)
-        spinner.start()
-        writer = report.ProgressWriter(progress_file, append=continuation.session > 1)
-        group = NodeGroup(self._node_environ())
         options = self.plan.options
-        trainer = (f'trainer {options.trainer}' + (', human-like' if options.human_like else '')
-                   if options.synthetic else 'a person trains')
-        resumed = (f', session {continuation.session} from step {continuation.steps_done}'
-                   if continuation.session > 1 else '')
-        self._say(f'Run folder {self.plan.run_dir} (ROS domain {self.domain_id}); '
-                  f'{options.condition}, {trainer}, {options.steps} steps{resumed}')
+
+        def monitor_of(context):
+            return GraphMonitor(tracker, GalleryCollector(), watch_plain=not options.synthetic,
+                                context=context)
+
+        with Driver(self.domain_id, monitor_of, self.err) as driver:
+            writer = report.ProgressWriter(progress_file, append=continuation.session > 1)
+            group = NodeGroup(self._node_environ())
+            trainer = (f'trainer {options.trainer}' +
+                       (', human-like' if options.human_like else '')
+                       if options.synthetic else 'a person trains')
+            resumed = (f', session {continuation.session} from step {continuation.steps_done}'
+                       if continuation.session > 1 else '')
+            self._say(f'Run folder {self.plan.run_dir} (ROS domain {self.domain_id}); '
+                      f'{options.condition}, {trainer}, {options.steps} steps{resumed}')
+            driver.exit_code = self._run_nodes(group, driver.node, writer, tracker)
+            return driver.exit_code
+
+    def _run_nodes(self, group: NodeGroup, monitor, writer, tracker) -> int:
+        """Start the nodes, watch the run, stop the nodes, write the run folder."""
         try:
             status, failed = self._start_nodes(group, monitor)
             if status is None:
@@ -168,10 +162,6 @@ class Launcher:
             if group.running():  # only after an error in the launcher itself
                 group.stop(sigint_timeout=10.0)
             writer.close()
-            executor.shutdown(timeout_sec=2.0)
-            monitor.destroy_node()
-            rclpy.try_shutdown(context=context)
-            spinner.join(timeout=5.0)
         return self._finish(status, failed, group, monitor, exit_codes, rss, cpu, queried)
 
     def _start_nodes(self, group: NodeGroup, monitor):
@@ -366,6 +356,7 @@ class Launcher:
                             self.plan.options_dict(), source)
         summary = self._summary(status, failed, exit_codes, exit_text, group, monitor, rss,
                                 queried)
+        summary['teardown_watchdog'] = group.teardown_hangs()
         summary['cpu_s'] = {name: None if value is None else round(value, 2)
                             for name, value in cpu.items()}
         summary['learner_log'] = report.learner_log_counts(run_dir / FEEDBACK_LOG)
@@ -458,18 +449,7 @@ class Launcher:
             'training_time_s': round(training_s, 2),
             'steps_per_s': round((steps - first_steps) / training_s, 2) if training_s else 0.0,
             'task': self.plan.options.task,
-            'milestones': list(load_task(self.plan.options.task).milestones),
-            'episodes': len(tracker.episodes),
-            'episodes_solved': len(tracker.solved_episodes),
-            'lives_lost': tracker.lives_lost,
-            'keys': tracker.keys,
-            'first_key_step': tracker.first_key_step,
-            'furthest_position': tracker.furthest,
-            'first_step_at_position': {str(k): v for k, v in
-                                       sorted(tracker.first_step_at.items())},
-            'furthest_position_stood': tracker.furthest_stood,
-            'first_step_stood_at_position': {str(k): v for k, v in
-                                             sorted(tracker.first_step_stood_at.items())},
+            **task_measures(load_task(self.plan.options.task), tracker),
             'trainer': self.plan.options.trainer,
             'human_like': self.plan.options.human_like,
             'feedback_count': feedback,
@@ -498,6 +478,42 @@ class Launcher:
                 'logs': LOGS_DIR,
             },
         }
+
+
+def task_measures(task, tracker: ProgressTracker) -> dict:
+    """
+    Return what a run reached, in its task's terms.
+
+    Every task: its milestones by name, the first step at each (``milestone_steps``), the
+    furthest, the episodes and those solved; held-out episodes where the task has held-out
+    layouts. Room 1 keeps the thesis's names beside them (critical positions by index, keys,
+    lives, positions stood on).
+    """
+    furthest = tracker.furthest
+    measures = {
+        'milestones': list(task.milestones),
+        'milestone_steps': tracker.milestone_steps(task.milestones),
+        'furthest_milestone': task.milestones[furthest] if furthest >= 0 else None,
+        'episodes': len(tracker.episodes),
+        'episodes_solved': len(tracker.solved_episodes),
+    }
+    if task.heldout_layouts:
+        measures['heldout_episodes'] = len(tracker.heldout_episodes)
+        measures['heldout_episodes_solved'] = len(tracker.heldout_episodes
+                                                  & tracker.solved_episodes)
+    if task.name == ROOM_1:
+        measures.update({
+            'lives_lost': tracker.lives_lost,
+            'keys': tracker.keys,
+            'first_key_step': tracker.first_key_step,
+            'furthest_position': furthest,
+            'first_step_at_position': {str(k): v for k, v in
+                                       sorted(tracker.first_step_at.items())},
+            'furthest_position_stood': tracker.furthest_stood,
+            'first_step_stood_at_position': {str(k): v for k, v in
+                                             sorted(tracker.first_step_stood_at.items())},
+        })
+    return measures
 
 
 def continuation_of(run_dir: Path) -> Continuation:

@@ -19,6 +19,7 @@ from typing import Dict, List, Mapping, Optional, Sequence
 
 from attention_bringup.plan import NodeCommand
 from attention_common.isolation import isolated_environ
+from attention_common.teardown_watchdog import DUMP_HEADER
 
 # argv: <launcher pid> <executable> <args...>. Exits if the launcher is already gone.
 _DIE_WITH_PARENT_SHIM = (
@@ -195,3 +196,9 @@ class NodeGroup:
 
     def exit_codes(self) -> Dict[str, Optional[int]]:
         return {node.name: node.poll() for node in self.nodes}
+
+    def teardown_hangs(self) -> List[str]:
+        """Return the nodes whose teardown watchdog fired (its stack dump ends their log)."""
+        return [node.name for node in self.nodes
+                if any(line.startswith(DUMP_HEADER)
+                       for line in log_tail(node.command.log_path, 60).splitlines())]

@@ -12,7 +12,7 @@ within 1 %).
 
 import collections
 from dataclasses import dataclass, field
-from typing import Callable, Deque, Dict, List, Mapping, Optional
+from typing import Callable, Deque, Dict, List, Mapping, Optional, Sequence
 
 from ddsketch import DDSketch
 
@@ -78,6 +78,8 @@ class ProgressTracker:
     """The task's success (``Task.solved``) on a step's values: its episode counts as solved."""
     solved_episodes: set = field(default_factory=set)
     """(session, episode) of the episodes solved."""
+    heldout_episodes: set = field(default_factory=set)
+    """(session, episode) of the episodes on held-out layouts (DoorKey's last part)."""
     start_room: int = START_ROOM
     counters: Counters = field(default_factory=Counters)
     rows: Deque[dict] = field(default_factory=lambda: collections.deque(maxlen=RECENT_ROWS))
@@ -126,6 +128,10 @@ class ProgressTracker:
             self.latencies_ms.add(float(latency))
         self._add_row(stamp_ns, values, wall_s)
 
+    def milestone_steps(self, milestones: Sequence[str]) -> Dict[str, Optional[int]]:
+        """Return the agent step at which each milestone was first reached, by name."""
+        return {name: self.first_step_at.get(index) for index, name in enumerate(milestones)}
+
     def take_new_rows(self) -> List[dict]:
         """Return the rows added since the last call (each row is handed out once)."""
         rows, self._new_rows = self._new_rows, []
@@ -161,6 +167,8 @@ class ProgressTracker:
             self.episodes.add((self.session, values['episode']))
             if self.solved_of(values):
                 self.solved_episodes.add((self.session, values['episode']))
+            if values.get('heldout'):
+                self.heldout_episodes.add((self.session, values['episode']))
         self.step_at_stamp[stamp_ns] = step
         while len(self.step_at_stamp) > RECENT_STAMPS:
             self.step_at_stamp.popitem(last=False)
@@ -218,6 +226,8 @@ class ProgressTracker:
             had_key = has_key
             self.lives_lost += int(row.get('life_lost') or 0)
             self.episodes.add((session, row['episode']))
+            if int(row.get('heldout') or 0):
+                self.heldout_episodes.add((session, row['episode']))
             stood = int(row['furthest_stood'])
             if stood > self.furthest_stood:  # confirmed ALIVE_STEPS after it was stood on
                 self.first_step_stood_at.setdefault(stood, step - ALIVE_STEPS)

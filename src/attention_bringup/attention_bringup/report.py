@@ -10,6 +10,7 @@ from typing import Dict, Iterator, List, Mapping, Optional, Sequence
 from attention_bringup.gallery import GallerySample
 from attention_bringup.params import dump_params
 from attention_bringup.progress import format_duration, parse_value, PROGRESS_COLUMNS
+from attention_tasks.task import ROOM_1
 
 PLOT_ROWS = 20_000
 """About as many rows of progress.csv as the learning curve draws (a long run is thinned)."""
@@ -108,13 +109,10 @@ def feedback_text(summary: Mapping) -> str:
 def summary_lines(summary: Mapping) -> List[str]:
     """Return the three lines printed at the end of a run."""
     counts = summary.get('message_counts', {})
-    firsts = summary.get('first_step_at_position', {})
-    furthest = summary.get('furthest_position', -1)
-    milestones = summary.get('milestones') or [f'critical position {i}' for i in range(6)]
-    name = milestones[furthest] if 0 <= furthest < len(milestones) else str(furthest)
-    kind = 'critical position' if summary.get('task', 'montezuma') == 'montezuma' else 'sub-goal'
+    name = summary.get('furthest_milestone')
+    kind = 'critical position' if summary.get('task', ROOM_1) == ROOM_1 else 'sub-goal'
     reached = (f'furthest {kind} {name.replace("critical position ", "")} (first at step '
-               f'{firsts[str(furthest)]})' if furthest >= 0 and str(furthest) in firsts
+               f'{summary["milestone_steps"][name]})' if name is not None
                else f'no {kind} reached')
     metrics = summary.get('metrics', {})
     loss = metrics.get('train/loss')
@@ -127,7 +125,7 @@ def summary_lines(summary: Mapping) -> List[str]:
     first_key = summary.get('first_key_step')
     key_text = (f'the key at step {first_key} ({summary.get("keys", 0)} in all)'
                 if first_key is not None else 'no key')
-    if summary.get('task', 'montezuma') != 'montezuma':
+    if summary.get('task', ROOM_1) != ROOM_1:
         key_text = f'{summary.get("episodes_solved", 0)} solved'
     return [
         f'{summary.get("steps", 0)} steps in {format_duration(summary.get("wall_time_s", 0))} '
@@ -136,7 +134,9 @@ def summary_lines(summary: Mapping) -> List[str]:
         f'{feedback_text(summary)}, utterances {utterances}, '
         'saliency images '
         f'{counts.get("saliency", 0)}; {updates_text}{loss_text}',
-        f'{summary.get("status", "?")}: {summary.get("exit_text", "")}',
+        f'{summary.get("status", "?")}: {summary.get("exit_text", "")}' + (
+            f' (teardown watchdog ended {", ".join(summary["teardown_watchdog"])}: its stack '
+            'is in the log)' if summary.get('teardown_watchdog') else ''),
     ]
 
 

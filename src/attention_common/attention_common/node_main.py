@@ -4,7 +4,9 @@ The Jazzy ``main()`` every node of the graph shares.
 ``rclpy.init``, build the node, spin it in the main thread (``executors.py``: rclpy's
 EventsExecutor unless ``ATTENTION_EXECUTOR=single``), and on Ctrl-C / SIGINT / SIGTERM handle
 what was already sent to the node (``StopRequest``), destroy it and shut down cleanly with exit
-code 0. A node that cannot start (a missing template file, say) raises ``StartupError`` from
+code 0. A node's own last work (``close()``, see ``Closing``) comes first; leaving DDS after it
+runs under a watchdog (``teardown_watchdog``) that ends a hung teardown with exit code 0. A node
+that cannot start (a missing template file, say) raises ``StartupError`` from
 its constructor: the message is printed once, plainly, and the exit code is 1.
 """
 
@@ -16,6 +18,7 @@ from typing import Callable, Optional
 
 from attention_common.dds_memory import use_freed_payloads
 from attention_common.executors import make_executor, release, spin_until_shutdown
+from attention_common.teardown_watchdog import TeardownWatchdog
 import rclpy
 from rclpy.executors import ExternalShutdownException
 from rclpy.signals import SignalHandlerOptions
@@ -35,6 +38,30 @@ def _still_running() -> bool:
 
 class StartupError(RuntimeError):
     """A node cannot start; the message says why and what to do."""
+
+
+class Closing:
+    """
+    Mixin for a node with work of its own to finish (a last checkpoint, a bag's last chunk).
+
+    The node puts that work in ``on_close()``; ``close()`` runs it once. ``run_node`` calls
+    ``close()`` before leaving DDS (which is watched for hangs, the node's work is not), and
+    ``destroy_node()`` calls it too, for whoever builds the node in their own process.
+    """
+
+    _closed = False
+
+    def on_close(self) -> None:
+        """Finish the node's own work (override)."""
+
+    def close(self) -> None:
+        if not self._closed:
+            self._closed = True
+            self.on_close()
+
+    def destroy_node(self) -> None:
+        self.close()
+        super().destroy_node()
 
 
 class StopRequest:
@@ -86,13 +113,22 @@ def run_node(node_factory: Callable[[], object], args=None,
         # being built or a message taken): creating a publisher or taking from a subscription
         # then fails. That is stopping, not an error.
     finally:
-        if executor is not None:
-            # Let go of the node's entities first: the EventsExecutor holds them "in use", and
-            # a node destroyed under it left saliency_node spinning in rclpy's EventHandler
-            # __exit__ after the end of a run, never exiting.
-            release(executor, node)
-            executor = None
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
+        try:
+            if isinstance(node, Closing):
+                node.close()
+        finally:
+            with TeardownWatchdog():
+                _leave_dds(executor, node)
     return 0
+
+
+def _leave_dds(executor, node) -> None:
+    """Let go of the executor, the node and the context (rclpy and the middleware)."""
+    if executor is not None:
+        # Let go of the node's entities first: the EventsExecutor holds them "in use", and a
+        # node destroyed under it left saliency_node spinning in rclpy's EventHandler __exit__
+        # after the end of a run, never exiting.
+        release(executor, node)
+    if node is not None:
+        node.destroy_node()
+    rclpy.try_shutdown()

@@ -20,7 +20,9 @@ from typing import Any, Callable, Dict, Mapping, NamedTuple, Optional, Tuple
 
 from attention_common.joy_actions import NUM_ACTIONS as NUM_JOY_ACTIONS
 
-DEFAULT_TASK = 'montezuma'
+ROOM_1 = 'montezuma'
+"""The thesis's task: Montezuma's Revenge, Room 1."""
+DEFAULT_TASK = ROOM_1
 NO_ACTION = -1
 """``Step.action`` of a step no agent action led to (a reset, the start after warm-up)."""
 
@@ -85,6 +87,9 @@ class Task:
     frames along the expert's routes with random detours, for pretraining the encoder."""
     solved: Callable[[Mapping[str, object]], bool] = lambda values: False
     """Whether the step's status ends an episode in success (the study counts these)."""
+    heldout_layouts: bool = False
+    """Whether the last part of a run is on layouts it never trained on (env_status
+    ``heldout``): the summary then counts the held-out episodes and those solved."""
     standing_poses: frozenset = frozenset()
     """env_status ``pose`` values of an agent held by something (Room 1: ground, ladder, rope):
     the launcher counts a milestone as stood on only in one of them; empty: not measured."""

@@ -21,7 +21,7 @@ import time
 from attention_common import qos, topics
 from attention_common.image_codec import numpy_to_image
 from attention_common.joy_actions import ACTION_MEANINGS, joy_to_action, JoyActionError
-from attention_common.node_main import run_node, StartupError
+from attention_common.node_main import Closing, run_node, StartupError
 from attention_common.parameters import declare_dataclass
 from attention_common.stamps import ns_to_stamp, stamp_to_ns
 from attention_tasks.task import load_task, Step, UnknownTask
@@ -46,7 +46,7 @@ this publisher on its side is lost."""
 LOG_THROTTLE_S = 5.0
 
 
-class EnvNode(Node):
+class EnvNode(Closing, Node):
     """Publishes each step of the game; applies the Joy actions that answer it."""
 
     OBS, POSITION, STATUS = topics.OBSERVATION, topics.AGENT_POSITION, topics.ENV_STATUS
@@ -327,10 +327,9 @@ class EnvNode(Node):
                                  f'task {self._task.name} ({carried})')
         return action
 
-    def destroy_node(self) -> None:
-        """Release the emulator with the node."""
+    def on_close(self) -> None:
+        """Release the emulator."""
         self._env.close()
-        super().destroy_node()
 
 
 def main(args=None):

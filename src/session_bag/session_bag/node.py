@@ -19,7 +19,7 @@ import os
 from pathlib import Path
 
 from attention_common.executors import with_message_info
-from attention_common.node_main import run_node, StartupError
+from attention_common.node_main import Closing, run_node, StartupError
 from attention_common.parameters import declare_dataclass
 from attention_common.run_files import OPTIONS_FILE, PARAMS_FILE
 from rclpy.clock import Clock, ClockType
@@ -68,7 +68,7 @@ def run_custom_data(run_dir: str) -> dict:
     return data
 
 
-class RecorderNode(Node):
+class RecorderNode(Closing, Node):
     """Writes what the graph publishes into one bag."""
 
     def __init__(self, **kwargs):
@@ -133,7 +133,8 @@ class RecorderNode(Node):
     def _now_ns(self) -> int:
         return self.get_clock().now().nanoseconds
 
-    def destroy_node(self) -> None:
+    def on_close(self) -> None:
+        """Close the bag: its last chunk, its index and its metadata."""
         writer = getattr(self, 'writer', None)
         if writer is not None and not writer.closed:
             try:
@@ -143,7 +144,6 @@ class RecorderNode(Node):
             except Exception as error:  # noqa: B902
                 self._error('the bag was not closed whole (attention_bag repair makes it '
                             'readable by every rosbag2 reader)', error)
-        super().destroy_node()
 
 
 def main(args=None) -> int:

@@ -23,7 +23,7 @@ from attention_common import qos, topics
 from attention_common.executors import with_message_info
 from attention_common.image_codec import image_to_numpy, ImageFormatError
 from attention_common.joy_actions import action_to_joy, joy_to_action, JoyActionError
-from attention_common.node_main import run_node, StartupError
+from attention_common.node_main import Closing, run_node, StartupError
 from attention_common.parameters import declare_parameters
 from attention_common.stamps import ns_to_stamp, stamp_to_ns
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
@@ -43,7 +43,7 @@ DROPS_LOGGED_IN_FULL = 20
 """The first drops of images each get a line (each kind of bad input is seen); then throttled."""
 
 
-class TamerNode(Node):
+class TamerNode(Closing, Node):
     """Acts greedily on each observation and learns from feedback on a thread of its own."""
 
     def __init__(self, **kwargs):
@@ -273,11 +273,11 @@ class TamerNode(Node):
         self.metrics_pub.publish(array)
         self.agent.write_metrics_row(values)
 
-    def destroy_node(self) -> None:
+    def on_close(self) -> None:
+        """Finish pending feedback, write the last checkpoint, close the files."""
         agent = getattr(self, 'agent', None)
         if agent is not None:
-            agent.close()  # finishes pending feedback, writes the last checkpoint
-        super().destroy_node()
+            agent.close()
 
 
 RECEIPT_TEXT_CHARS = 200

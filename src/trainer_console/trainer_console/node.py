@@ -17,7 +17,7 @@ import time
 from attention_common import qos, topics
 from attention_common.feedback import FEEDBACK_RANGE
 from attention_common.image_codec import image_to_numpy, ImageFormatError
-from attention_common.node_main import run_node, StartupError
+from attention_common.node_main import Closing, run_node, StartupError
 from attention_common.parameters import declare_dataclass
 from attention_common.stamps import stamp_to_ns
 from attention_common.utterance import MAX_UTTERANCE_CHARS
@@ -42,7 +42,7 @@ MAX_PIXELS = 1024 * 1024
 """Larger images are not shown (and never decoded)."""
 
 
-class ConsoleNode(Node):
+class ConsoleNode(Closing, Node):
     """The trainer's console: serves the page, publishes what the person gives."""
 
     def __init__(self, **kwargs):
@@ -210,11 +210,11 @@ class ConsoleNode(Node):
         self.get_logger().info('paused the env' if paused else 'resumed the env')
         return {'ok': True}
 
-    def destroy_node(self) -> None:
+    def on_close(self) -> None:
+        """Stop the web server."""
         server = getattr(self, 'server', None)
         if server is not None:
             server.stop()
-        super().destroy_node()
 
 
 def _first(msg: DiagnosticArray):

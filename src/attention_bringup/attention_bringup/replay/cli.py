@@ -30,6 +30,7 @@ import time
 from typing import Optional
 
 from attention_bringup import report
+from attention_bringup.driver import Driver
 from attention_bringup.graph import CONDITIONS
 from attention_bringup.params import ParamsFileError
 from attention_bringup.plan import chosen_domain
@@ -41,8 +42,7 @@ from attention_bringup.replay.player import (
     feedback_receipt, ReplayPlayer, sleep_until, task_action_of_bytes)
 from attention_bringup.replay.session import Agreement, RECEIPTED, replay_items
 from attention_common import topics
-from attention_common.dds_memory import use_freed_payloads
-from attention_common.isolation import apply_to_this_process, reserved_domain
+from attention_common.isolation import reserved_domain
 from attention_common.run_files import LEARNING_CURVE_FILE, LOGS_DIR, SUMMARY_FILE
 from attention_tasks.task import load_task
 from session_bag.reader import BagReader
@@ -91,46 +91,31 @@ class Replay:
                 signal.signal(sig, handler)
 
     def _run(self) -> int:
-        import rclpy
-        from rclpy.context import Context
-        from rclpy.signals import SignalHandlerOptions
-
-        from attention_bringup.monitor import spin_until_shutdown
-        from attention_common.executors import make_executor
-
-        apply_to_this_process(self.domain_id)
-        use_freed_payloads()  # the graph's Fast DDS profile, as every node of it has
-        context = Context()
-        rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)
-        player = ReplayPlayer(self.task, context=context)
-        executor = make_executor(context=context)
-        executor.add_node(player)
-        spinner = threading.Thread(target=spin_until_shutdown,
-                                   args=(executor, context, self.err), daemon=True)
-        spinner.start()
-        group = NodeGroup(node_environ(self.domain_id, self.plan.run_dir / LOGS_DIR))
-        started = time.monotonic()
-        self._say(f'Replaying {self.plan.bag_dir} into {self.plan.run_dir} (ROS domain '
-                  f'{self.domain_id}); {self.plan.task}, {self.plan.condition}, seed '
-                  f'{self.plan.seed}, {"fast" if self.plan.options.fast else "recorded timing"}')
-        status = 'completed'
-        try:
-            for command in self.plan.commands:
-                group.start(command)
-            status = self._wait_ready(group, player)
-            if status is None:
-                status = self._send(group, player)
-            exit_codes = group.stop(STOP_TIMEOUT_S)
-        finally:
-            if group.running():
-                group.stop(sigint_timeout=10.0)
-            executor.shutdown(timeout_sec=2.0)
-            player.destroy_node()
-            rclpy.try_shutdown(context=context)
-            spinner.join(timeout=5.0)
-        if status == 'completed' and any(code != 0 for code in exit_codes.values()):
-            status = 'unclean_exit'
-        return self._finish(status, exit_codes, player, time.monotonic() - started)
+        with Driver(self.domain_id, lambda context: ReplayPlayer(self.task, context=context),
+                    self.err) as driver:
+            player = driver.node
+            group = NodeGroup(node_environ(self.domain_id, self.plan.run_dir / LOGS_DIR))
+            started = time.monotonic()
+            self._say(f'Replaying {self.plan.bag_dir} into {self.plan.run_dir} (ROS domain '
+                      f'{self.domain_id}); {self.plan.task}, {self.plan.condition}, seed '
+                      f'{self.plan.seed}, '
+                      f'{"fast" if self.plan.options.fast else "recorded timing"}')
+            status = 'completed'
+            try:
+                for command in self.plan.commands:
+                    group.start(command)
+                status = self._wait_ready(group, player)
+                if status is None:
+                    status = self._send(group, player)
+                exit_codes = group.stop(STOP_TIMEOUT_S)
+            finally:
+                if group.running():
+                    group.stop(sigint_timeout=10.0)
+            if status == 'completed' and any(code != 0 for code in exit_codes.values()):
+                status = 'unclean_exit'
+            driver.exit_code = self._finish(status, exit_codes, player,
+                                            time.monotonic() - started)
+            return driver.exit_code
 
     def _wait_ready(self, group: NodeGroup, player: ReplayPlayer) -> Optional[str]:
         deadline = time.monotonic() + STARTUP_TIMEOUT_S

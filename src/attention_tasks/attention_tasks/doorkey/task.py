@@ -31,4 +31,4 @@ TASK = Task(
     joy_actions=JOY_ACTIONS, action_names=ACTION_NAMES, env_config=DoorKeyEnvConfig,
     make_env=DoorKeyEnv, milestones=SUBGOALS, milestone_of=milestone_of, manifest=MANIFEST,
     realtime_hz=REALTIME_HZ, encoder_file='encoder_doorkey.pt', collect_frames=collect_frames,
-    solved=_solved)
+    solved=_solved, heldout_layouts=True)
