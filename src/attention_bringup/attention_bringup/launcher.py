@@ -209,27 +209,16 @@ class Launcher:
 
     def _wait_for(self, group: NodeGroup, ready, timeout_s: float, what: str):
         """Wait until ``ready()``; return None, or (status, node) on a death or a timeout."""
-        deadline = time.monotonic() + timeout_s
-        while not ready():
-            ended = self._interrupted_or_dead(group)
-            if ended:
-                return ended
-            if time.monotonic() > deadline:
-                self.err.write(f'attention_train: {what} after {timeout_s:.0f} s; node logs are '
-                               f'in {self.plan.run_dir / LOGS_DIR}\n')
-                return 'stalled', None
-            time.sleep(0.05)
-        return None
+        failure = group.wait_ready(ready, timeout_s, lambda: self._interrupted_or_dead(group))
+        if failure == ('stalled', None):
+            self.err.write(f'attention_train: {what} after {timeout_s:.0f} s; node logs are '
+                           f'in {self.plan.run_dir / LOGS_DIR}\n')
+        return failure
 
     def _interrupted_or_dead(self, group: NodeGroup):
         """Return (status, node) after Ctrl-C or a node's death (reported), else None."""
-        if self.interrupts:
-            return 'interrupted', None
-        dead = group.first_exited()
-        if dead is not None:
-            self._report_dead(dead)
-            return 'node_failed', dead.name
-        return None
+        return group.interrupted_or_dead(bool(self.interrupts), self._say_death,
+                                         'attention_train')
 
     def _write_pids(self, group: NodeGroup) -> None:
         report.write_json(self.plan.run_dir / PIDS_FILE,
@@ -320,13 +309,9 @@ class Launcher:
             self.err.write(text + '\n')
             self.err.flush()
 
-    def _report_dead(self, node) -> None:
+    def _say_death(self, text: str) -> None:
         self._clear_bar()
-        tail = log_tail(node.command.log_path)
-        indented = '\n'.join('    ' + line for line in tail.splitlines()) or '    (empty log)'
-        self.err.write(f'attention_train: {node.name} died ({exit_description(node.poll())}); '
-                       f'the last lines of {node.command.log_path}:\n{indented}\n'
-                       'attention_train: stopping the other nodes.\n')
+        self.err.write(text)
         self.err.flush()
 
     def _report_stall(self, monitor, started: bool, limit: float) -> None:

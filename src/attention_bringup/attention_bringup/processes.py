@@ -15,7 +15,7 @@ import signal
 import subprocess
 import sys
 import time
-from typing import Dict, List, Mapping, Optional, Sequence
+from typing import Callable, Dict, List, Mapping, Optional, Sequence, Tuple
 
 from attention_bringup.plan import NodeCommand
 from attention_common.isolation import isolated_environ
@@ -196,6 +196,38 @@ class NodeGroup:
 
     def exit_codes(self) -> Dict[str, Optional[int]]:
         return {node.name: node.poll() for node in self.nodes}
+
+    def interrupted_or_dead(self, interrupted: bool, say: Callable[[str], None],
+                            program: str) -> Optional[Tuple[str, Optional[str]]]:
+        """
+        Return ('interrupted', None) after a Ctrl-C, ('node_failed', node) when a node died.
+
+        A death is said once, through ``say``, with the last lines of the node's log; None
+        while the run goes on.
+        """
+        if interrupted:
+            return 'interrupted', None
+        dead = self.first_exited()
+        if dead is None:
+            return None
+        tail = log_tail(dead.command.log_path)
+        indented = '\n'.join('    ' + line for line in tail.splitlines()) or '    (empty log)'
+        say(f'{program}: {dead.name} died ({exit_description(dead.poll())}); the last lines '
+            f'of {dead.command.log_path}:\n{indented}\n{program}: stopping the other nodes.\n')
+        return 'node_failed', dead.name
+
+    def wait_ready(self, ready: Callable[[], bool], timeout_s: float,
+                   ended: Callable[[], Optional[tuple]]) -> Optional[Tuple[str, Optional[str]]]:
+        """Wait until ``ready()``: None, else ``ended()``'s result or ('stalled', None)."""
+        deadline = time.monotonic() + timeout_s
+        while not ready():
+            result = ended()
+            if result:
+                return result
+            if time.monotonic() > deadline:
+                return 'stalled', None
+            time.sleep(0.05)
+        return None
 
     def teardown_hangs(self) -> List[str]:
         """Return the nodes whose teardown watchdog fired (its stack dump ends their log)."""

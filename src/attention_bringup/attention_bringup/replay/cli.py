@@ -34,7 +34,7 @@ from attention_bringup.driver import Driver
 from attention_bringup.graph import CONDITIONS
 from attention_bringup.params import ParamsFileError
 from attention_bringup.plan import chosen_domain
-from attention_bringup.processes import exit_description, node_environ, NodeGroup
+from attention_bringup.processes import node_environ, NodeGroup
 from attention_bringup.replay.output import plot_replay, study_table, summary_lines
 from attention_bringup.replay.plan import (
     build_plan, OPTIONS_FILE, PARAMS_FILE, parse_options, ReplayPlan, STEPS_FILE)
@@ -118,29 +118,17 @@ class Replay:
             return driver.exit_code
 
     def _wait_ready(self, group: NodeGroup, player: ReplayPlayer) -> Optional[str]:
-        deadline = time.monotonic() + STARTUP_TIMEOUT_S
-        while not player.nodes_listen():
-            ended = self._ended(group)
-            if ended:
-                return ended
-            if time.monotonic() > deadline:
-                self.err.write(f'attention_replay: the nodes do not listen after '
-                               f'{STARTUP_TIMEOUT_S:.0f} s; logs in '
-                               f'{self.plan.run_dir / LOGS_DIR}\n')
-                return 'stalled'
-            time.sleep(0.05)
-        return None
+        failure = group.wait_ready(player.nodes_listen, STARTUP_TIMEOUT_S,
+                                   lambda: self._ended(group))
+        if failure == ('stalled', None):
+            self.err.write(f'attention_replay: the nodes do not listen after '
+                           f'{STARTUP_TIMEOUT_S:.0f} s; logs in {self.plan.run_dir / LOGS_DIR}\n')
+        return failure and failure[0]
 
-    def _ended(self, group: NodeGroup) -> Optional[str]:
-        """Return 'interrupted' after Ctrl-C, 'node_failed' (said) if a node died, else None."""
-        if self.interrupted.is_set():
-            return 'interrupted'
-        dead = group.first_exited()
-        if dead is None:
-            return None
-        self.err.write(f'attention_replay: {dead.name} died ({exit_description(dead.poll())}); '
-                       f'see {dead.command.log_path}\n')
-        return 'node_failed'
+    def _ended(self, group: NodeGroup) -> Optional[tuple]:
+        """Return ('interrupted', None) after Ctrl-C, ('node_failed', node) (said), else None."""
+        return group.interrupted_or_dead(self.interrupted.is_set(), self.err.write,
+                                         'attention_replay')
 
     def _send(self, group: NodeGroup, player: ReplayPlayer) -> str:
         """Send every item of the bag in order; return the run's status."""
@@ -152,7 +140,7 @@ class Replay:
         for item in replay_items(self._watch_session(reader.messages())):
             ended = self._ended(group)
             if ended:
-                return ended
+                return ended[0]
             if first_log is None:
                 first_log, start = item.log_time, time.monotonic()
             if not fast:
