@@ -90,8 +90,13 @@ class TeardownWatchdog:
         sys.stdout.flush()
         sys.stderr.flush()
         self._timer = _native_exit_timer(self.deadline_s + EXIT_GRACE_S, self.exit_code)
-        faulthandler.dump_traceback_later(self.deadline_s, exit=self._timer is None,
-                                          file=sys.stderr)
+        for stream in (sys.stderr, sys.__stderr__):  # (a captured stderr may have no fd)
+            try:
+                faulthandler.dump_traceback_later(self.deadline_s, exit=self._timer is None,
+                                                  file=stream)
+                break
+            except (AttributeError, ValueError, OSError):
+                continue
         self._armed = True
 
     def disarm(self) -> None:

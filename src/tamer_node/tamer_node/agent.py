@@ -117,9 +117,10 @@ class TamerAgent:
         self.history = StepHistory(config.history_steps)
         steps_dir = self.run_dir / STEPS_DIR
         self.journal = StepJournal(steps_dir, StepJournal.last_segment(steps_dir) + 1)
-        self.feedback_log = FeedbackLog(self.run_dir / FEEDBACK_LOG)
+        self.feedback_log = FeedbackLog(self.run_dir / FEEDBACK_LOG, config.sync)
         self.metrics_csv = MetricsCsv(self.run_dir / METRICS_CSV)
-        self.disk = DiskWriter(self.journal, lambda text: self._log('error', text))
+        self.disk = DiskWriter(self.journal, lambda text: self._log('error', text),
+                               when_idle=self.feedback_log.commit)
         # Checkpoints (torch.save + fsync, 50-150 ms) on a thread of their own: a person's
         # feedback is never written behind one (a key press waited 160 ms for it).
         self.checkpoint_disk = DiskWriter(self.journal, lambda text: self._log('error', text),
@@ -225,6 +226,7 @@ class TamerAgent:
         values['act/version'] = self.actor.version
         values['train/alpha'] = self.learner.alpha
         values['disk/errors'] = self.disk.errors + self.checkpoint_disk.errors
+        values['disk/feedback_syncs'] = self.feedback_log.syncs
         now, updates = time.monotonic(), values['train/updates']
         last_time, last_updates = self._last_rate
         values['train/updates_per_s'] = (updates - last_updates) / max(now - last_time, 1e-9)

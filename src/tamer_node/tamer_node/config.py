@@ -11,6 +11,7 @@ CREDIT_MODES = ('step', 'window')
 CREDIT_LOSSES = ('each', 'mixture')
 INPUT_IMAGES = ('observation', 'saliency')
 UPDATE_CLOCKS = ('sim', 'wall')
+SYNC_MODES = ('off', 'grouped', 'every')
 
 
 @dataclass
@@ -119,6 +120,11 @@ class TamerConfig:
     """Folder for metrics.csv, feedback_log.jsonl, checkpoints/ ('' = a new dated folder)."""
     resume: bool = False
     """Continue the run in run_dir from its last checkpoint and its feedback log."""
+    sync: str = 'grouped'
+    """When a feedback_log.jsonl line is made durable (fdatasync) before its receipt
+    (feedback_logged) goes out: 'grouped' (one fdatasync for the lines logged together, as
+    soon as the disk thread has nothing more queued or the oldest waited 0.1 s), 'every' (one
+    per line), 'off' (flushed to the OS only: survives a kill -9, not a power cut)."""
 
     def validate(self) -> None:
         """Raise ValueError naming the first field with an impossible value."""
@@ -128,6 +134,8 @@ class TamerConfig:
         if self.credit_loss not in CREDIT_LOSSES:
             raise ValueError(
                 f'credit_loss must be one of {CREDIT_LOSSES}, got {self.credit_loss!r}')
+        if self.sync not in SYNC_MODES:
+            raise ValueError(f'sync must be one of {SYNC_MODES}, got {self.sync!r}')
         if self.update_clock not in UPDATE_CLOCKS:
             raise ValueError(
                 f'update_clock must be one of {UPDATE_CLOCKS}, got {self.update_clock!r}')

@@ -4,7 +4,8 @@ Feedback and utterance intake: what a person (or the synthetic trainer) says, on
 Owned by the ``feedback*``/``utterance`` callbacks: it numbers each feedback, checks it and
 queues it to the disk thread, which drains the step journal, appends the feedback to
 ``feedback_log.jsonl`` (flushed) and only then puts it in the learner's inbox: what the learner
-uses is on disk, in arrival order. Utterances are checked and logged the same way (the saliency
+uses is on disk, in arrival order. Its receipt goes out once its line is synced
+(``sync``). Utterances are checked and logged the same way (the saliency
 node turns them into images).
 """
 
@@ -84,14 +85,13 @@ class FeedbackIntake:
         """On the disk thread: the feedback is on disk (flushed) before the learner sees it."""
         try:
             self.journal.drain()  # the steps it refers to reach the disk before it does
-            self.feedback_log.append(entry)
+            # The receipt goes out once the line is durable (TamerConfig.sync).
+            self.feedback_log.append(entry, lambda: self._receipt(entry))
             self.counters['feedback/logged'] += 1
         except (OSError, ValueError) as error:  # a full disk: say so loudly, still learn
             self.counters['disk/feedback_log_errors'] += 1
             self._log('error', f'feedback #{event.seq} could not be written to '
                       f'{self.feedback_log.path}: {error}')
-        else:
-            self._receipt(entry)
         self._learn(event)
 
     def _receipt(self, entry: dict) -> None:
@@ -102,8 +102,7 @@ class FeedbackIntake:
                 self._log('error', f'receipt for a logged {entry["kind"]} failed: {error!r}')
 
     def _log_utterance(self, entry: dict) -> None:
-        self.feedback_log.append(entry)
-        self._receipt(entry)
+        self.feedback_log.append(entry, lambda: self._receipt(entry))
 
     def on_utterance(self, text: str, extra: Optional[dict] = None) -> str:
         """

@@ -2,8 +2,9 @@
 Everything a run writes to <run_dir>, so that a crash loses nothing a person said.
 
 - ``feedback_log.jsonl``: one JSON line per feedback (and utterance) received, written and
-  flushed before the feedback is used (survives ``kill -9``; a power cut may lose the page
-  cache's last lines, as with any file not fsync'ed).
+  flushed before the feedback is used (survives ``kill -9``), and made durable with
+  ``fdatasync`` before its receipt goes out (``sync``: grouped by default, so a power cut
+  loses no line a receipt was sent for).
 - ``steps/segment-NNNNNN.bin``: a journal of the steps (preprocessed images, chosen actions),
   written a few records at a time. A step is known by its session and stamp: the env's stamps
   start over when it is started again (a resume), and each tamer_node start, or restart of the
@@ -30,6 +31,7 @@ import queue
 import struct
 import sys
 import threading
+import time
 from typing import Callable, Dict, Iterator, List, Optional, Tuple
 import zlib
 
@@ -54,21 +56,66 @@ def json_number(value: float):
     return value if math.isfinite(value) else repr(float(value))
 
 
-class FeedbackLog:
-    """Append-only JSON lines, each flushed as it is written."""
+SYNC_GROUP_S = 0.1
+"""``sync`` grouped: the longest a logged line waits for its fdatasync (and its receipt)."""
 
-    def __init__(self, path: Path):
+
+class FeedbackLog:
+    """
+    Append-only JSON lines, each flushed as it is written, synced before its receipt.
+
+    ``append(entry, receipt)`` calls ``receipt()`` once the line is as durable as ``sync``
+    says: at once ('off': in the OS's page cache), after an fdatasync of its own ('every'), or
+    after the fdatasync that ``commit`` does for every line waiting ('grouped': the disk thread
+    commits when it has nothing more queued, and ``append`` once the oldest waited
+    ``SYNC_GROUP_S``). A failed fdatasync raises; the receipts of the lines it covered are not
+    sent (the line is still in the file and with the learner).
+    """
+
+    def __init__(self, path: Path, sync: str = 'off'):
         self.path = Path(path)
+        self.sync = sync
         self._file = open(self.path, 'a', encoding='utf-8')
         self._lock = threading.Lock()
+        self._waiting: List[Callable[[], None]] = []  # receipts of lines not synced yet
+        self._unsynced = False
+        self._oldest = 0.0
+        self.syncs = 0
+        """fdatasync calls so far (the cost of durability, in metrics)."""
 
-    def append(self, entry: dict) -> None:
+    def append(self, entry: dict, receipt: Optional[Callable[[], None]] = None) -> None:
         line = json.dumps(entry, allow_nan=False, ensure_ascii=True)
         with self._lock:
             self._file.write(line + '\n')
             self._file.flush()
+            if not self._unsynced:
+                self._oldest = time.monotonic()
+            self._unsynced = True
+            if receipt is not None:
+                self._waiting.append(receipt)
+            due = (self.sync != 'grouped'
+                   or time.monotonic() - self._oldest >= SYNC_GROUP_S)
+            ready = self._sync_locked() if due else []
+        for callback in ready:
+            callback()
+
+    def commit(self) -> None:
+        """Sync every line logged so far, then send their receipts (grouped)."""
+        with self._lock:
+            ready = self._sync_locked()
+        for callback in ready:
+            callback()
+
+    def _sync_locked(self) -> List[Callable[[], None]]:
+        ready, self._waiting = self._waiting, []
+        unsynced, self._unsynced = self._unsynced, False
+        if unsynced and self.sync != 'off':
+            os.fdatasync(self._file.fileno())  # raises: the receipts above are not sent
+            self.syncs += 1
+        return ready
 
     def close(self) -> None:
+        self.commit()
         with self._lock:
             self._file.close()
 
@@ -262,9 +309,12 @@ class DiskWriter(threading.Thread):
     """The thread that does the run's slow disk work: journal drains, checkpoints, CSV rows."""
 
     def __init__(self, journal: StepJournal, on_error: Callable[[str], None],
-                 drain_period_s: float = 0.2, name: str = 'tamer-disk'):
+                 drain_period_s: float = 0.2, name: str = 'tamer-disk',
+                 when_idle: Optional[Callable[[], None]] = None):
         super().__init__(name=name, daemon=True)
         self._journal = journal
+        self._when_idle = when_idle
+        """Run whenever the queue is empty after a job (the feedback log's group commit)."""
         self._jobs: 'queue.Queue[Optional[Callable[[], None]]]' = queue.Queue()
         self._on_error = on_error
         self._period = drain_period_s
@@ -281,10 +331,17 @@ class DiskWriter(threading.Thread):
                 job = self._drain
             if job is None:
                 self._guard(self._drain)
+                self._idle()
                 return
             self._guard(job)
             if job is not self._drain:
                 self._guard(self._drain)
+            if self._jobs.empty():
+                self._idle()
+
+    def _idle(self) -> None:
+        if self._when_idle is not None:
+            self._guard(self._when_idle)
 
     def flush(self, timeout: float = 30.0) -> bool:
         """Wait until every job submitted so far is done (or the thread is not running)."""
