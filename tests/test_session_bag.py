@@ -262,3 +262,25 @@ def test_a_replay_takes_the_sessions_parameters_and_the_chosen_condition(tmp_pat
     assert same.condition == 'language' and same.params['tamer_node']['alpha'] == 0.0001
     with pytest.raises(ValueError, match='neither a bag folder'):
         build_plan(ReplayOptions(bag=str(tmp_path)), tmp_path / 'bin', tmp_path)
+
+
+def test_a_synced_flush_puts_the_flushed_bag_on_disk_first(tmp_path, monkeypatch):
+    import os
+    durable = []
+    real = os.fdatasync
+
+    def fdatasync(fd):
+        real(fd)
+        durable.append(os.fstat(fd).st_size)
+
+    monkeypatch.setattr(os, 'fdatasync', fdatasync)
+    writer = BagWriter(tmp_path / 'bag', sync=True)
+    writer.add_topic('/utterance', 'std_msgs/msg/String', [metadata.qos_dict(qos.HUMAN)])
+    writer.write('/utterance', 1_000, serialize_message(String(data='climb down')))
+    writer.flush()
+    assert writer.syncs == 1 and durable == [(tmp_path / 'bag' / 'bag_0.mcap').stat().st_size]
+    unsynced = BagWriter(tmp_path / 'other')
+    unsynced.flush()
+    assert unsynced.syncs == 0 and len(durable) == 1
+    writer.close()
+    unsynced.close()

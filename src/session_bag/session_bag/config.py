@@ -8,6 +8,9 @@ from typing import List
 from session_bag.recorded import RECORDED
 from session_bag.writer import COMPRESSIONS
 
+SYNC_MODES = ('off', 'grouped')
+"""The recorder's sync choices (a bag is synced per flush, never per message: 30 frames/s)."""
+
 
 @dataclass
 class RecorderConfig:
@@ -22,6 +25,9 @@ class RecorderConfig:
     """MCAP chunk compression: zstd, lz4 or none."""
     flush_period_s: float = 0.5
     """Wall seconds between flushes: a killed recorder loses at most this much of the bag."""
+    sync: str = 'grouped'
+    """'grouped': every flush also fdatasyncs the bag, so a power cut loses at most one
+    flush_period_s of it, as a kill does; 'off': flushed to the OS only."""
     topics: str = ''
     """Comma-separated topics to record ('' = every topic of the graph, session_bag.recorded)."""
     nice: int = 5
@@ -36,6 +42,8 @@ class RecorderConfig:
         if not 0.05 <= self.flush_period_s <= 1.0:
             raise ValueError('flush_period_s must be within 0.05..1.0 s (a crash loses at most '
                              f'this much), got {self.flush_period_s}')
+        if self.sync not in SYNC_MODES:
+            raise ValueError(f'sync must be one of {", ".join(SYNC_MODES)}, got {self.sync!r}')
         if not 0 <= self.nice <= 19:
             raise ValueError(f'nice must be within 0..19, got {self.nice}')
         unknown = set(self.topic_names()) - {t.name for t in RECORDED}

@@ -78,7 +78,8 @@ class RecorderNode(Closing, Node):
             self.config.validate()
             bag_dir = self.config.bag_path(Path.cwd(), datetime.datetime.now())
             writer = BagWriter(bag_dir, self.config.compression,
-                               run_custom_data(self.config.run_dir))
+                               run_custom_data(self.config.run_dir),
+                               sync=self.config.sync == 'grouped')
         except (ValueError, OSError) as error:
             raise StartupError(f'session_recorder: {error}') from error
         self.writer = writer

@@ -12,6 +12,7 @@ loses what came after the last flush; the file then lacks MCAP's summary and foo
 ``repair.py`` (``attention_bag repair``) writes back; the stream reader reads it as it is.
 """
 
+import os
 from pathlib import Path
 from typing import Dict, List, Mapping, Optional
 
@@ -36,7 +37,7 @@ class BagWriter:
 
     def __init__(self, bag_dir: Path, compression: str = 'zstd',
                  custom_data: Optional[Mapping[str, str]] = None,
-                 chunk_size: int = CHUNK_SIZE):
+                 chunk_size: int = CHUNK_SIZE, sync: bool = False):
         if compression not in COMPRESSIONS:
             raise ValueError(f'compression {compression!r}: one of {", ".join(COMPRESSIONS)}')
         self.bag_dir = Path(bag_dir)
@@ -47,6 +48,9 @@ class BagWriter:
         self.storage_file = storage_file_name(self.bag_dir)
         self.path = self.bag_dir / self.storage_file
         self.custom_data = {str(k): str(v) for k, v in (custom_data or {}).items()}
+        self.sync = sync
+        """Each flush also fdatasyncs the MCAP file: what was flushed survives a power cut."""
+        self.syncs = 0
         self._stream = open(self.path, 'xb')
         self._writer = Writer(self._stream, chunk_size=chunk_size,
                               compression=COMPRESSIONS[compression])
@@ -110,6 +114,10 @@ class BagWriter:
         if self.closed:
             return
         self._writer.flush()
+        if self.sync:
+            self._stream.flush()
+            os.fdatasync(self._stream.fileno())
+            self.syncs += 1
         self.write_metadata()
 
     def close(self) -> None:
