@@ -35,6 +35,7 @@ from attention_bringup.processes import (
     cpu_seconds, exit_description, log_tail, node_environ, NodeGroup, resident_memory_kb)
 from attention_bringup.progress import format_bar, ProgressTracker
 from attention_common.isolation import reserved_domain
+from attention_common.node_main import unblock_stop_signals
 from attention_common.run_files import (
     CHECKPOINT_DIR, FEEDBACK_LOG, GALLERY_FILE, LEARNING_CURVE_FILE, LOGS_DIR, METRICS_CSV,
     of_session, OPTIONS_FILE, OVERRIDES_FILE, PARAMS_FILE, PIDS_FILE, PROGRESS_FILE, SUMMARY_FILE)
@@ -96,6 +97,7 @@ class Launcher:
         self._prepare_run_dir()
         previous = {sig: signal.signal(sig, self._on_signal)
                     for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)}
+        unblock_stop_signals()  # (and its nodes, which inherit the mask, hear them too)
         try:
             return self._run()
         finally:

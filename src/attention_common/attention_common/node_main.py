@@ -40,6 +40,21 @@ class StartupError(RuntimeError):
     """A node cannot start; the message says why and what to do."""
 
 
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+
+def unblock_stop_signals() -> None:
+    """
+    Let SIGINT and SIGTERM reach this process, whatever its parent blocked.
+
+    A signal mask is inherited across fork and exec: a Ray worker's threads block SIGINT, so a
+    launcher started from a Ray task, and its nodes, never got the SIGINT that stops them
+    cleanly (each needed SIGTERM, 10 s later).
+    """
+    if hasattr(signal, 'pthread_sigmask'):
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, STOP_SIGNALS)
+
+
 class Closing:
     """
     Mixin for a node with work of its own to finish (a last checkpoint, a bag's last chunk).
@@ -78,8 +93,9 @@ class StopRequest:
         self.spinning = False
 
     def install(self) -> None:
-        for sig in (signal.SIGINT, signal.SIGTERM):
+        for sig in STOP_SIGNALS:
             signal.signal(sig, self)
+        unblock_stop_signals()
 
     def __call__(self, signum, frame) -> None:
         if not self.spinning or self.event.is_set():

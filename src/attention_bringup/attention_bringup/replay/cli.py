@@ -43,6 +43,7 @@ from attention_bringup.replay.player import (
 from attention_bringup.replay.session import Agreement, RECEIPTED, replay_items
 from attention_common import topics
 from attention_common.isolation import reserved_domain
+from attention_common.node_main import unblock_stop_signals
 from attention_common.run_files import LEARNING_CURVE_FILE, LOGS_DIR, SUMMARY_FILE
 from attention_tasks.task import load_task
 from session_bag.reader import BagReader
@@ -84,6 +85,7 @@ class Replay:
         report.write_json(run_dir / OPTIONS_FILE, self.plan.options_dict())
         previous = {sig: signal.signal(sig, lambda *_: self.interrupted.set())
                     for sig in (signal.SIGINT, signal.SIGTERM)}
+        unblock_stop_signals()
         try:
             return self._run()
         finally:

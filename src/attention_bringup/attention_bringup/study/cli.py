@@ -55,6 +55,14 @@ def argument_parser() -> argparse.ArgumentParser:
                         help=f'agent steps per trial (default {DEFAULT_STEPS})')
     parser.add_argument('--parallel', type=positive_int, default=1,
                         help='trials run side by side (default 1; each is 4 node processes)')
+    parser.add_argument('--backend', choices=('local', 'ray'), default='local',
+                        help="where trials run: 'local' (default, --parallel at a time) or "
+                             "'ray' (each trial a task on the Ray cluster at --address, as "
+                             "many at a time as its nodes' attention_graph resource allows; "
+                             'docs/cluster.md)')
+    parser.add_argument('--address', default='auto',
+                        help="the Ray cluster with --backend ray (default 'auto': the one "
+                             'started on this machine)')
     parser.add_argument('--out', default=DEFAULT_OUT,
                         help=f'folder of trial results and figures (default {DEFAULT_OUT})')
     parser.add_argument('--report', default=DEFAULT_REPORT,
@@ -171,8 +179,16 @@ def run_study(options: argparse.Namespace, out_dir: Path) -> Optional[dict]:
 
     def work() -> None:
         try:
-            box['records'] = runner.run_trials(jobs, launcher, options.parallel, timeout, stop,
-                                               _Progress(len(jobs), options.parallel))
+            progress = _Progress(len(jobs), options.parallel)
+            if options.backend == 'ray':
+                from attention_bringup.study import ray_backend
+                box['records'] = ray_backend.run_trials(jobs, options.address, timeout, stop,
+                                                        progress)
+            else:
+                box['records'] = runner.run_trials(jobs, launcher, options.parallel, timeout,
+                                                   stop, progress)
+        except Exception as error:  # noqa: B902 - said, and the study ends with the rest
+            box['error'] = error
         finally:
             done.set()
 
@@ -191,12 +207,15 @@ def run_study(options: argparse.Namespace, out_dir: Path) -> Optional[dict]:
                      f'{runner.STOP_GRACE_S:.0f} s')
     finally:
         signal.signal(signal.SIGTERM, previous)
+    if 'error' in box:
+        raise ValueError(f'the trials could not run: {box["error"]}')
     records = box.get('records', [])
     entry = {
         'argv': sys.argv[1:],
         'started_at': started_at,
         'wall_time_s': round(time.monotonic() - started, 1),
         'parallel': options.parallel,
+        'backend': options.backend,
         'steps': options.steps,
         'cpus': os.cpu_count(),
         'trials_run': len(records),

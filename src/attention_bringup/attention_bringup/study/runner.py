@@ -114,8 +114,8 @@ def _signal(process: subprocess.Popen, sig: signal.Signals) -> None:
 
 
 def run_trial(job: TrialJob, launcher: Path, stop: threading.Event, timeout_s: float,
-              parallel: int = 1) -> Optional[dict]:
-    """Run one trial to its end and write its result file; None if the study was stopped."""
+              parallel: int = 1, write: bool = True) -> Optional[dict]:
+    """Run one trial to its end and (``write``) its result file; None if the study stopped."""
     if job.run_dir.exists():  # left by an interrupted attempt: its data is not a result
         shutil.rmtree(job.run_dir)
     job.run_dir.mkdir(parents=True)
@@ -145,7 +145,8 @@ def run_trial(job: TrialJob, launcher: Path, stop: threading.Event, timeout_s: f
     record = build_record(job.condition, job.seed, job.steps, job.run_dir, process.returncode,
                           time.monotonic() - started, timed_out=timed_out,
                           started_at=started_at, parallel=parallel)
-    write_json(job.result_path, record)
+    if write:
+        write_json(job.result_path, record)
     return record
 
 

@@ -1,0 +1,142 @@
+"""
+``attention_study --backend ray`` on a real local Ray cluster, against the local backend.
+
+The cluster is a head and one more node, each with one unit of the graph resource, on
+loopback. Also: Ctrl-C during a study on either backend leaves no process of the graph.
+"""
+
+import json
+import os
+from pathlib import Path
+import signal
+import subprocess
+import sys
+import time
+
+from attention_bringup.study.ray_backend import GRAPH_RESOURCE, LOOPBACK
+from harness import wait_until
+import pytest
+
+STUDY = str(Path(sys.executable).parent / 'attention_study')
+STEPS = 300
+SAME_FIELDS = ('condition', 'seed', 'budget', 'outcome', 'steps', 'parameters', 'trainer')
+"""What a trial's result file says whichever backend ran it (times and folders differ)."""
+
+
+def _listening() -> set:
+    """Return the (address, port) of every listening TCP socket on this machine."""
+    found = set()
+    for name in ('/proc/net/tcp', '/proc/net/tcp6'):
+        with open(name) as table:
+            for line in list(table)[1:]:
+                fields = line.split()
+                if fields[3] == '0A':  # LISTEN
+                    address, port = fields[1].split(':')
+                    found.add((address, int(port, 16)))
+    return found
+
+
+def _loopback(hex_address: str) -> bool:
+    """Tell a /proc/net address on loopback (127.x, ::1, ::ffff:127.x) from any other."""
+    if len(hex_address) == 8:  # IPv4, its bytes reversed: 127.0.0.1 is 0100007F
+        return hex_address.endswith('7F')
+    mapped_v4 = hex_address.startswith('0000000000000000FFFF0000')
+    return (hex_address == '00000000000000000000000001000000'
+            or mapped_v4 and hex_address.endswith('7F'))
+
+
+@pytest.fixture(scope='module')
+def cluster():
+    os.environ.update(LOOPBACK)
+    before = _listening()
+    from ray.cluster_utils import Cluster
+    ray_cluster = Cluster(initialize_head=True, head_node_args={
+        'num_cpus': 1, 'resources': {GRAPH_RESOURCE: 1}, 'include_dashboard': False})
+    ray_cluster.add_node(num_cpus=1, resources={GRAPH_RESOURCE: 1})
+    ray_cluster.opened = _listening() - before
+    yield ray_cluster
+    ray_cluster.shutdown()
+
+
+@pytest.mark.topics
+def test_the_ray_cluster_listens_on_loopback_only(cluster):
+    assert cluster.address.startswith('127.0.0.1:')
+    assert cluster.opened, 'the cluster opened no listening socket?'
+    assert [s for s in cluster.opened if not _loopback(s[0])] == []
+
+
+def _study(out: Path, *extra: str) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [STUDY, '--conditions', 'vanilla', 'language', '--trials', '2', '--steps', str(STEPS),
+         '--out', str(out), '--report', str(out / 'results.md'), *extra],
+        capture_output=True, text=True, timeout=600)
+
+
+def _records(out: Path) -> dict:
+    return {(path.parent.name, path.stem): json.loads(path.read_text())
+            for path in sorted((out / 'trials').glob('*/seed*.json'))}
+
+
+@pytest.mark.topics
+@pytest.mark.slow
+def test_a_study_on_ray_writes_what_the_local_backend_writes(cluster, tmp_path):
+    on_ray = _study(tmp_path / 'ray', '--backend', 'ray', '--address', cluster.address)
+    assert on_ray.returncode == 0, on_ray.stderr[-4000:]
+    local = _study(tmp_path / 'local', '--parallel', '2')
+    assert local.returncode == 0, local.stderr[-4000:]
+    ray_records, local_records = _records(tmp_path / 'ray'), _records(tmp_path / 'local')
+    assert sorted(ray_records) == sorted(local_records) == [
+        ('language', 'seed0'), ('language', 'seed1'), ('vanilla', 'seed0'), ('vanilla', 'seed1')]
+    for key, record in ray_records.items():
+        assert record['outcome'] == 'completed', record['problem']
+        assert ({f: record[f] for f in SAME_FIELDS}
+                == {f: local_records[key][f] for f in SAME_FIELDS}), key
+    for out in ('ray', 'local'):
+        analysis = json.loads((tmp_path / out / 'analysis.json').read_text())
+        assert {c: s['usable'] for c, s in analysis['conditions'].items()} == {
+            'vanilla': 2, 'language': 2}
+        assert '| `vanilla` | 2/2 |' in (tmp_path / out / 'results.md').read_text()
+        # Every node stopped at its SIGINT: a Ray worker's threads block SIGINT, and the
+        # launcher and its nodes inherited that mask (each needed SIGTERM, 10 s later).
+        summary = json.loads((tmp_path / out / 'runs' / 'vanilla' / 'seed0' /
+                              'summary.json').read_text())
+        assert set(map(tuple, summary['signals_sent'].values())) == {('SIGINT',)}, out
+    log = json.loads((tmp_path / 'ray' / 'study_log.json').read_text())
+    assert log[-1]['backend'] == 'ray' and log[-1]['trials_run'] == 4
+
+
+@pytest.mark.topics
+@pytest.mark.parametrize('backend', ['local', 'ray'])
+def test_ctrl_c_during_a_study_leaves_no_process_of_the_graph(cluster, tmp_path, backend):
+    out = tmp_path / 'study'
+    extra = ['--backend', 'ray', '--address', cluster.address] if backend == 'ray' else []
+    study = subprocess.Popen(
+        [STUDY, '--conditions', 'vanilla', '--trials', '1', '--steps', '100000', '--out',
+         str(out), '--report', str(out / 'results.md'), *extra],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    run_dir = out / 'runs' / 'vanilla' / 'seed0'
+    try:
+        assert wait_until(lambda: (run_dir / 'progress.csv').exists() and
+                          len((run_dir / 'progress.csv').read_text().splitlines()) > 20
+                          or study.poll() is not None, 180), 'the trial did not start'
+        assert study.poll() is None, study.communicate()[1][-3000:]
+        pids = json.loads((run_dir / 'pids.json').read_text())
+        study.send_signal(signal.SIGINT)
+        _, stderr = study.communicate(timeout=200)
+    finally:
+        if study.poll() is None:
+            study.kill()
+    assert study.returncode == 130, stderr[-3000:]
+    graph = {name: pid for name, pid in pids.items() if name != 'domain_id'}
+    assert len(graph) >= 5  # the launcher and its four nodes
+    time.sleep(1.0)
+    assert [name for name, pid in graph.items() if _alive(pid)] == []
+    assert not (out / 'trials' / 'vanilla' / 'seed0.json').exists()  # runs again next time
+
+
+def _alive(pid: int) -> bool:
+    try:
+        with open(f'/proc/{pid}/stat') as stat:
+            return stat.read().rsplit(')', 1)[1].split()[0] != 'Z'
+    except OSError:
+        return False
