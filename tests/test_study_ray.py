@@ -131,6 +131,11 @@ def test_ctrl_c_during_a_study_leaves_no_process_of_the_graph(cluster, tmp_path,
     assert len(graph) >= 5  # the launcher and its four nodes
     time.sleep(1.0)
     assert [name for name, pid in graph.items() if _alive(pid)] == []
+    # The launcher stopped its graph itself (not killed with its Ray worker): its run folder
+    # says so, every node stopped at its SIGINT.
+    summary = json.loads((run_dir / 'summary.json').read_text())
+    assert summary['status'] == 'interrupted'
+    assert set(summary['exit_codes'].values()) == {0}, summary['exit_text']
     assert not (out / 'trials' / 'vanilla' / 'seed0.json').exists()  # runs again next time
 
 

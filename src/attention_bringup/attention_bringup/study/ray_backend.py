@@ -8,8 +8,8 @@ on the node it runs on), so a task asks for no CPU of Ray's accounting but for o
 local backend does, the run folder on its own disk, and returns the trial's result record; the
 driver writes the result file, so a study resumes the same way on either backend. Ray's retries
 are off: a crashed trial is recorded as crashed and run again only with ``--retry-crashed``.
-On Ctrl-C the driver cancels the tasks, and each one stops its launcher (one SIGINT: it stops
-its nodes cleanly) before it ends. See docs/cluster.md.
+On Ctrl-C the driver tells every task (an actor holds the flag), and each one stops its
+launcher (one SIGINT: it stops its nodes cleanly) before it ends. See docs/cluster.md.
 """
 
 import os
@@ -27,11 +27,26 @@ LOOPBACK = {'RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER': '0'}
 """On Linux, Ray binds the machine's network address unless this is set: with it, a cluster
 started here stays on 127.0.0.1 (the network rule; docs/cluster.md opens it up on purpose)."""
 CANCEL_GRACE_S = runner.STOP_GRACE_S + 30.0
-"""After a Ctrl-C, how long the driver waits for every cancelled trial to stop its graph."""
+"""After a Ctrl-C, how long the driver waits for every trial to stop its graph (then it
+cancels what is left)."""
 
 
-def _trial_on_worker(job: runner.TrialJob, timeout_s: float) -> Optional[dict]:
-    """Run one trial on this Ray worker; on cancellation, stop its launcher first."""
+class _StopFlag:
+    """The study's Ctrl-C, told to every task (a Ray actor: tasks ask it twice a second)."""
+
+    def __init__(self):
+        self.stopped = False
+
+    def stop(self) -> None:
+        self.stopped = True
+
+    def asked(self) -> bool:
+        return self.stopped
+
+
+def _trial_on_worker(job: runner.TrialJob, timeout_s: float, flag) -> Optional[dict]:
+    """Run one trial on this Ray worker; once the study stops, stop its launcher first."""
+    import ray
     launcher = Path(sys.executable).parent / 'attention_train'
     stop, box = threading.Event(), {}
     thread = threading.Thread(
@@ -41,8 +56,10 @@ def _trial_on_worker(job: runner.TrialJob, timeout_s: float) -> Optional[dict]:
     thread.start()
     while thread.is_alive():
         try:
-            thread.join(timeout=0.25)
-        except KeyboardInterrupt:  # ray.cancel: SIGINT to the launcher, wait for its nodes
+            thread.join(timeout=0.5)
+            if not stop.is_set() and ray.get(flag.asked.remote()):
+                stop.set()  # SIGINT to the launcher; the task ends once its graph has
+        except KeyboardInterrupt:  # ray.cancel: the same
             stop.set()
     return box.get('record')
 
@@ -61,15 +78,19 @@ def run_trials(jobs: Sequence[runner.TrialJob], address: str, timeout_s: float,
                              '(docs/cluster.md)')
         task = ray.remote(num_cpus=0, resources={GRAPH_RESOURCE: 1}, max_retries=0)(
             _trial_on_worker)
-        pending = {task.remote(job, timeout_s): job for job in jobs}
+        flag = ray.remote(num_cpus=0)(_StopFlag).remote()
+        pending = {task.remote(job, timeout_s, flag): job for job in jobs}
         records: List[dict] = []
-        cancelled_at = None
+        stopped_at = None
         while pending:
-            if stop.is_set() and cancelled_at is None:
-                cancelled_at = time.monotonic()
+            if stop.is_set() and stopped_at is None:
+                # Not ray.cancel: a cancelled task counts as done at once, while its graph is
+                # still stopping; each task ends only once its launcher has stopped its nodes.
+                stopped_at = time.monotonic()
+                ray.get(flag.stop.remote())
+            if stopped_at is not None and time.monotonic() - stopped_at > CANCEL_GRACE_S:
                 for ref in pending:
                     ray.cancel(ref)
-            if cancelled_at is not None and time.monotonic() - cancelled_at > CANCEL_GRACE_S:
                 break
             done, _ = ray.wait(list(pending), num_returns=1, timeout=0.5)
             for ref in done:
