@@ -13,6 +13,7 @@ import subprocess
 import sys
 import time
 
+from attention_bringup.processes import is_running
 from attention_bringup.study.ray_backend import GRAPH_RESOURCE, LOOPBACK
 from harness import wait_until
 import pytest
@@ -130,18 +131,10 @@ def test_ctrl_c_during_a_study_leaves_no_process_of_the_graph(cluster, tmp_path,
     graph = {name: pid for name, pid in pids.items() if name != 'domain_id'}
     assert len(graph) >= 5  # the launcher and its four nodes
     time.sleep(1.0)
-    assert [name for name, pid in graph.items() if _alive(pid)] == []
+    assert [name for name, pid in graph.items() if is_running(pid)] == []
     # The launcher stopped its graph itself (not killed with its Ray worker): its run folder
     # says so, every node stopped at its SIGINT.
     summary = json.loads((run_dir / 'summary.json').read_text())
     assert summary['status'] == 'interrupted'
     assert set(summary['exit_codes'].values()) == {0}, summary['exit_text']
     assert not (out / 'trials' / 'vanilla' / 'seed0.json').exists()  # runs again next time
-
-
-def _alive(pid: int) -> bool:
-    try:
-        with open(f'/proc/{pid}/stat') as stat:
-            return stat.read().rsplit(')', 1)[1].split()[0] != 'Z'
-    except OSError:
-        return False

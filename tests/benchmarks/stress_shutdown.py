@@ -27,20 +27,14 @@ import sys
 import tempfile
 import time
 
+from attention_bringup.processes import is_running
+
 BIN = Path(sys.executable).parent
 NODES = ('env_node', 'feedback_node', 'saliency_node', 'tamer_node', 'session_recorder')
 FIELDS = ['cycle', 'executor', 'ending', 'status', 'seconds'] + [
     f'{node}_{what}' for node in NODES for what in ('exit', 'watchdog', 'escalated')]
 GDB_AFTER_S = 2.5
 """After a Ctrl-C: a node still alive now is in its teardown's last second or stuck."""
-
-
-def _alive(pid: int) -> bool:
-    try:
-        with open(f'/proc/{pid}/stat') as stat:
-            return stat.read().rsplit(')', 1)[1].split()[0] != 'Z'
-    except OSError:
-        return False
 
 
 def _progress_rows(run_dir: Path) -> int:
@@ -53,7 +47,7 @@ def _progress_rows(run_dir: Path) -> int:
 
 def _native_stacks(pids: dict, into: Path) -> None:
     for name, pid in pids.items():
-        if name in NODES[:-1] and _alive(pid):  # (the recorder is stopped last, after them)
+        if name in NODES[:-1] and is_running(pid):  # (the recorder is stopped last, after them)
             stacks = subprocess.run(['gdb', '-p', str(pid), '-batch', '-ex',
                                      'thread apply all bt'], capture_output=True, text=True)
             into.mkdir(parents=True, exist_ok=True)

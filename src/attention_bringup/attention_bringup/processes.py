@@ -88,6 +88,15 @@ def resident_memory_kb(pid: int) -> Dict[str, int]:
     return values
 
 
+def is_running(pid: int) -> bool:
+    """Tell whether a process runs (a zombie, exited but not yet reaped, does not)."""
+    try:
+        with open(f'/proc/{pid}/stat') as stat:
+            return stat.read().rsplit(')', 1)[1].split()[0] != 'Z'
+    except OSError:
+        return False
+
+
 def cpu_seconds(pid: int) -> Optional[float]:
     """Return the CPU time (user + system) a process has used so far, from /proc."""
     try:
