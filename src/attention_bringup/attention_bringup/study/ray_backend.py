@@ -25,7 +25,8 @@ from attention_bringup.study.trials import write_json
 GRAPH_RESOURCE = 'attention_graph'
 LOOPBACK = {'RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER': '0'}
 """On Linux, Ray binds the machine's network address unless this is set: with it, a cluster
-started here stays on 127.0.0.1 (the network rule; docs/cluster.md opens it up on purpose)."""
+started here stays on 127.0.0.1 (the network rule). The study sets it unless it is set already;
+=1 is Ray's own Linux default, how docs/cluster.md opens a cluster up on purpose."""
 CANCEL_GRACE_S = runner.STOP_GRACE_S + 30.0
 """After a Ctrl-C, how long the driver waits for every trial to stop its graph (then it
 cancels what is left)."""
@@ -68,7 +69,8 @@ def run_trials(jobs: Sequence[runner.TrialJob], address: str, timeout_s: float,
                stop: threading.Event,
                report: Callable[[runner.TrialJob, Optional[dict], int], None]) -> List[dict]:
     """Run ``jobs`` on the Ray cluster at ``address`` until done or ``stop`` is set."""
-    os.environ.update(LOOPBACK)
+    for name, value in LOOPBACK.items():  # kept as the user set it: a cluster opened up
+        os.environ.setdefault(name, value)
     import ray
     ray.init(address=address, logging_level='WARNING', log_to_driver=False)
     try:
