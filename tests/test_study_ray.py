@@ -106,16 +106,9 @@ def test_a_study_on_ray_writes_what_the_local_backend_writes(cluster, tmp_path):
     assert log[-1]['backend'] == 'ray' and log[-1]['trials_run'] == 4
 
 
-@pytest.mark.topics
-@pytest.mark.parametrize('backend', ['local', 'ray'])
-def test_ctrl_c_during_a_study_leaves_no_process_of_the_graph(cluster, tmp_path, backend):
-    out = tmp_path / 'study'
-    extra = ['--backend', 'ray', '--address', cluster.address] if backend == 'ray' else []
-    study = subprocess.Popen(
-        [STUDY, '--conditions', 'vanilla', '--trials', '1', '--steps', '100000', '--out',
-         str(out), '--report', str(out / 'results.md'), *extra],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    run_dir = out / 'runs' / 'vanilla' / 'seed0'
+def _interrupt_and_check(argv, run_dir: Path, result_file: Path) -> None:
+    """Ctrl-C a study command mid-trial: it stops every process of the graph and says so."""
+    study = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         assert wait_until(lambda: (run_dir / 'progress.csv').exists() and
                           len((run_dir / 'progress.csv').read_text().splitlines()) > 20
@@ -137,4 +130,34 @@ def test_ctrl_c_during_a_study_leaves_no_process_of_the_graph(cluster, tmp_path,
     summary = json.loads((run_dir / 'summary.json').read_text())
     assert summary['status'] == 'interrupted'
     assert set(summary['exit_codes'].values()) == {0}, summary['exit_text']
-    assert not (out / 'trials' / 'vanilla' / 'seed0.json').exists()  # runs again next time
+    assert not result_file.exists()  # runs again next time
+
+
+@pytest.mark.topics
+@pytest.mark.parametrize('backend', ['local', 'ray'])
+def test_ctrl_c_during_a_study_leaves_no_process_of_the_graph(cluster, tmp_path, backend):
+    out = tmp_path / 'study'
+    extra = ['--backend', 'ray', '--address', cluster.address] if backend == 'ray' else []
+    _interrupt_and_check(
+        [STUDY, '--conditions', 'vanilla', '--trials', '1', '--steps', '100000', '--out',
+         str(out), '--report', str(out / 'results.md'), *extra],
+        out / 'runs' / 'vanilla' / 'seed0', out / 'trials' / 'vanilla' / 'seed0.json')
+
+
+@pytest.mark.topics
+@pytest.mark.parametrize('command', ['attention_study_minigrid', 'attention_teaching'])
+def test_ctrl_c_during_the_other_studies_leaves_no_process_of_the_graph(tmp_path, command):
+    # Both used to re-raise Ctrl-C around their trial threads: the command died with a
+    # traceback and its launchers (in sessions of their own) ran on.
+    out = tmp_path / 'study'
+    argv = [str(Path(sys.executable).parent / command), '--steps', '100000', '--out', str(out),
+            '--report', str(out / 'report.md'), '--runs-dir', str(out / 'runs')]
+    if command == 'attention_teaching':
+        argv += ['--settings', 'every_step_vanilla', '--seeds', '1000']
+        run_dir = out / 'runs' / 'every_step_vanilla' / 'vanilla' / 'seed1000'
+        result = out / 'every_step_vanilla' / 'trials' / 'vanilla' / 'seed1000.json'
+    else:
+        argv += ['--conditions', 'vanilla', '--trials', '1']
+        run_dir = out / 'runs' / 'vanilla' / 'seed0'
+        result = out / 'trials' / 'vanilla' / 'seed0.json'
+    _interrupt_and_check(argv, run_dir, result)

@@ -241,6 +241,22 @@ def test_run_trial_writes_a_result_file_also_for_a_crash(tmp_path, fake_launcher
         assert 'stand-in launcher crash' in record['problem']['launcher_output_tail']
 
 
+def _count_progress_rows(record, run_dir):
+    """Count the rows of progress.csv: a study's own measure (module level, as on Ray)."""
+    record['rows'] = len((run_dir / 'progress.csv').read_text().splitlines()) - 1
+    return record
+
+
+def test_a_trial_carries_its_study_measures_into_its_result_file(tmp_path, fake_launcher):
+    (tmp_path / 'runs').mkdir()
+    (tmp_path / 'runs' / 'mode').write_text('ok')
+    jobs, _ = runner.plan_trials(['vanilla'], 1, 20, tmp_path / 'out', tmp_path / 'runs',
+                                 measure=_count_progress_rows)
+    record = runner.run_trial(jobs[0], fake_launcher, threading.Event(), timeout_s=30.0)
+    assert record['rows'] == len(trials.read_progress(jobs[0].run_dir / 'progress.csv')) > 0
+    assert json.loads(jobs[0].result_path.read_text())['rows'] == record['rows']
+
+
 def test_a_stopped_trial_leaves_no_result_and_a_timed_out_one_does(tmp_path, fake_launcher):
     (tmp_path / 'runs').mkdir()
     (tmp_path / 'runs' / 'mode').write_text('hang')

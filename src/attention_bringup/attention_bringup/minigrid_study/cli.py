@@ -11,12 +11,11 @@ from the result files.
 """
 
 import argparse
+import datetime
 import json
-import os
 from pathlib import Path
 import shlex
 import sys
-import threading
 import time
 from typing import List, Optional, Sequence
 
@@ -53,8 +52,7 @@ def argument_parser() -> argparse.ArgumentParser:
     parser.add_argument('--heldout-fraction', type=float, default=DEFAULT_HELDOUT_FRACTION,
                         help='last part of each trial on held-out layouts (default '
                              f'{DEFAULT_HELDOUT_FRACTION})')
-    parser.add_argument('--parallel', type=positive_int, default=1,
-                        help='trials side by side (default 1; each is 4 node processes)')
+    runner.add_backend_options(parser)
     parser.add_argument('--out', default=DEFAULT_OUT)
     parser.add_argument('--report', default=DEFAULT_REPORT)
     parser.add_argument('--runs-dir', default=None,
@@ -115,27 +113,24 @@ def add_measures(record: dict, run_dir: Path) -> dict:
     return record
 
 
-def run_study(options: argparse.Namespace, out_dir: Path) -> None:
+def run_study(options: argparse.Namespace, out_dir: Path) -> bool:
+    """Run the pending trials; return whether the study was interrupted."""
     params = write_params(out_dir, options.steps, options.heldout_fraction)
     jobs, kept = runner.plan_trials(options.conditions, options.trials, options.steps, out_dir,
                                     Path(options.runs_dir).resolve(),
                                     launcher_args=launcher_args(params.resolve(),
-                                                                not options.every_step_teacher))
+                                                                not options.every_step_teacher),
+                                    measure=add_measures)
     if kept:
         _say(f'{len(kept)} trial(s) already have results: skipped')
     if not jobs:
-        return
-    launcher = Path(sys.executable).parent / 'attention_train'
-    if not os.access(launcher, os.X_OK):
-        raise FileNotFoundError(f'{launcher} not found (run make setup)')
+        return False
     started, done = time.monotonic(), [0]
 
     def on_trial(job, record, finished) -> None:
         if record is None:
             _say(f'{job.condition} seed {job.seed}: interrupted (runs again next time)')
             return
-        add_measures(record, job.run_dir)
-        write_json(job.result_path, record)
         done[0] += 1
         measures = record['doorkey']
         left = (len(jobs) - done[0]) * (time.monotonic() - started) / done[0]
@@ -145,20 +140,17 @@ def run_study(options: argparse.Namespace, out_dir: Path) -> None:
              f'({record["wall_time_s"]:.0f} s; about {left / 60:.0f} min left)')
 
     _say(f'running {len(jobs)} trial(s) of {options.steps} steps, {options.parallel} at a time')
-    stop = threading.Event()
-    wall = time.monotonic()
-    try:
-        records = runner.run_trials(jobs, launcher, options.parallel,
-                                    runner.auto_timeout_s(options.steps), stop, on_trial)
-    except KeyboardInterrupt:
-        stop.set()
-        raise
+    started_at = datetime.datetime.now().isoformat(timespec='seconds')
+    records, interrupted = runner.run_pending(jobs, runner.backend_of(options),
+                                              runner.auto_timeout_s(options.steps), on_trial,
+                                              _say)
     log_path = out_dir / STUDY_LOG
     log = read_json(log_path) or []
-    log.append({'argv': sys.argv[1:], 'wall_time_s': round(time.monotonic() - wall, 1),
-                'parallel': options.parallel, 'steps': options.steps, 'cpus': os.cpu_count(),
-                'trials_run': len(records)})
+    log.append(runner.log_entry(runner.backend_of(options), records, started_at,
+                                time.monotonic() - started, interrupted, steps=options.steps,
+                                trials_skipped=len(kept)))
     write_json(log_path, log)
+    return interrupted
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
@@ -170,8 +162,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     out_dir.mkdir(parents=True, exist_ok=True)
     try:
         heldout_after(options.steps, options.heldout_fraction)
-        if not options.analyze_only:
-            run_study(options, out_dir)
+        interrupted = False if options.analyze_only else run_study(options, out_dir)
         found = load_records(out_dir, options.conditions)
         for condition, condition_records in found.items():
             for record in condition_records:  # measured again while the run folder is here
@@ -200,7 +191,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     _say(f'report {options.report}: '
          f'{sum(len(r) for r in records.values())} trial(s); figures in {options.out}')
     print(json.dumps({c: s['heldout_success_pooled'] for c, s in result['conditions'].items()}))
-    return 0
+    return runner.EXIT_INTERRUPTED if interrupted else 0
 
 
 if __name__ == '__main__':

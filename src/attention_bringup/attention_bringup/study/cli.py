@@ -18,9 +18,7 @@ import json
 import os
 from pathlib import Path
 import shlex
-import signal
 import sys
-import threading
 import time
 from typing import List, Optional, Sequence
 
@@ -28,8 +26,7 @@ from attention_bringup.graph import CONDITIONS
 from attention_bringup.plan import positive_int
 from attention_bringup.study import analysis as study_analysis
 from attention_bringup.study import figures, report, runner
-from attention_bringup.study.trials import (
-    is_usable, load_records, refresh_records, write_json)
+from attention_bringup.study.trials import load_records, refresh_records, write_json
 from attention_common.run_files import ANALYSIS_FILE, STUDY_LOG
 from feedback_node.teacher import TRAINERS
 
@@ -38,7 +35,7 @@ DEFAULT_STEPS = 10000
 DEFAULT_OUT = 'docs/study'
 DEFAULT_REPORT = 'docs/results.md'
 DEFAULT_RUNS = 'runs/study'
-EXIT_INTERRUPTED = 130
+EXIT_INTERRUPTED = runner.EXIT_INTERRUPTED
 
 
 def argument_parser() -> argparse.ArgumentParser:
@@ -53,16 +50,7 @@ def argument_parser() -> argparse.ArgumentParser:
                         help=f'trials per condition, seeds 0..N-1 (default {DEFAULT_TRIALS})')
     parser.add_argument('--steps', type=positive_int, default=DEFAULT_STEPS,
                         help=f'agent steps per trial (default {DEFAULT_STEPS})')
-    parser.add_argument('--parallel', type=positive_int, default=1,
-                        help='trials run side by side (default 1; each is 4 node processes)')
-    parser.add_argument('--backend', choices=('local', 'ray'), default='local',
-                        help="where trials run: 'local' (default, --parallel at a time) or "
-                             "'ray' (each trial a task on the Ray cluster at --address, as "
-                             "many at a time as its nodes' attention_graph resource allows; "
-                             'docs/cluster.md)')
-    parser.add_argument('--address', default='auto',
-                        help="the Ray cluster with --backend ray (default 'auto': the one "
-                             'started on this machine)')
+    runner.add_backend_options(parser)
     parser.add_argument('--out', default=DEFAULT_OUT,
                         help=f'folder of trial results and figures (default {DEFAULT_OUT})')
     parser.add_argument('--report', default=DEFAULT_REPORT,
@@ -161,68 +149,16 @@ def run_study(options: argparse.Namespace, out_dir: Path) -> Optional[dict]:
         _say(f'{len(kept)} trial(s) already have results: skipped')
     if not jobs:
         return None
-    launcher = Path(sys.executable).parent / 'attention_train'
-    if not os.access(launcher, os.X_OK):
-        raise FileNotFoundError(f'{launcher} not found (run make setup)')
     timeout = options.trial_timeout or runner.auto_timeout_s(options.steps)
     _say(f'running {len(jobs)} trial(s) of {options.steps} steps, {options.parallel} at a '
          f'time; run folders in {options.runs_dir}')
-    stop = threading.Event()
-    previous = signal.signal(signal.SIGTERM, lambda *_: stop.set())
     started_at = datetime.datetime.now().isoformat(timespec='seconds')
     started = time.monotonic()
-    records: List[dict] = []
-    box = {}
-    # The main thread waits on an Event, not Thread.join: a join interrupted by Ctrl-C can leave
-    # is_alive() False while the thread still runs (Python 3.11), and the trials would be lost.
-    done = threading.Event()
-
-    def work() -> None:
-        try:
-            progress = _Progress(len(jobs), options.parallel)
-            if options.backend == 'ray':
-                from attention_bringup.study import ray_backend
-                box['records'] = ray_backend.run_trials(jobs, options.address, timeout, stop,
-                                                        progress)
-            else:
-                box['records'] = runner.run_trials(jobs, launcher, options.parallel, timeout,
-                                                   stop, progress)
-        except Exception as error:  # noqa: B902 - said, and the study ends with the rest
-            box['error'] = error
-        finally:
-            done.set()
-
-    threading.Thread(target=work, name='trials', daemon=True).start()
-    try:
-        while not done.wait(timeout=0.5):
-            pass
-    except KeyboardInterrupt:
-        _say('interrupted: stopping the running trials (each launcher stops its nodes)...')
-        stop.set()
-        while not done.is_set():
-            try:
-                done.wait(timeout=0.5)
-            except KeyboardInterrupt:
-                _say('still stopping; the launchers get SIGTERM after '
-                     f'{runner.STOP_GRACE_S:.0f} s')
-    finally:
-        signal.signal(signal.SIGTERM, previous)
-    if 'error' in box:
-        raise ValueError(f'the trials could not run: {box["error"]}')
-    records = box.get('records', [])
-    entry = {
-        'argv': sys.argv[1:],
-        'started_at': started_at,
-        'wall_time_s': round(time.monotonic() - started, 1),
-        'parallel': options.parallel,
-        'backend': options.backend,
-        'steps': options.steps,
-        'cpus': os.cpu_count(),
-        'trials_run': len(records),
-        'trials_crashed': sum(1 for r in records if not is_usable(r)),
-        'trials_skipped': len(kept),
-        'interrupted': stop.is_set(),
-    }
+    records, interrupted = runner.run_pending(
+        jobs, runner.backend_of(options), timeout, _Progress(len(jobs), options.parallel), _say)
+    entry = runner.log_entry(runner.backend_of(options), records, started_at,
+                             time.monotonic() - started, interrupted, steps=options.steps,
+                             trials_skipped=len(kept))
     log = read_log(out_dir) + [entry]
     write_json(out_dir / STUDY_LOG, log)
     return entry

@@ -10,19 +10,24 @@ keeps its result file (and is re-run only with ``retry_crashed``, its old file m
 
 from dataclasses import dataclass
 import datetime
+import os
 from pathlib import Path
 import shutil
 import signal
 import subprocess
+import sys
 import threading
 import time
-from typing import Callable, List, Optional, Sequence, Tuple
+from typing import Callable, List, Mapping, Optional, Sequence, Tuple
 
+from attention_bringup.plan import positive_int
 from attention_bringup.study.trials import (
     build_record, is_usable, read_json, trial_path, write_json)
 from attention_common.isolation import isolated_environ
 from attention_common.run_files import LAUNCHER_LOG
 
+EXIT_INTERRUPTED = 130
+"""A study command's exit code after Ctrl-C (finished trials are kept)."""
 STOP_GRACE_S = 90.0
 """After its SIGINT, how long a launcher may take to stop its nodes before SIGTERM."""
 
@@ -38,6 +43,9 @@ class TrialJob:
     run_dir: Path
     launcher_args: Tuple[str, ...] = ()
     """More ``attention_train`` options (the trainer, the human-like setting)."""
+    measure: Optional[Callable[[dict, Path], dict]] = None
+    """A study's own measures, added to the record from the run folder where the trial ran
+    (a module-level function: on Ray it runs on the worker, beside the run folder)."""
 
 
 def auto_timeout_s(steps: int) -> float:
@@ -47,7 +55,8 @@ def auto_timeout_s(steps: int) -> float:
 
 def plan_trials(conditions: Sequence[str], trials: int, steps: int, out_dir: Path,
                 runs_dir: Path, retry_crashed: bool = False,
-                launcher_args: Sequence[str] = (), seeds: Optional[Sequence[int]] = None
+                launcher_args: Sequence[str] = (), seeds: Optional[Sequence[int]] = None,
+                measure: Optional[Callable[[dict, Path], dict]] = None
                 ) -> Tuple[List[TrialJob], List[Path]]:
     """
     Return (trials to run, result files that exist and are kept).
@@ -60,7 +69,7 @@ def plan_trials(conditions: Sequence[str], trials: int, steps: int, out_dir: Pat
         for condition in conditions:
             path = trial_path(out_dir, condition, seed)
             run_dir = Path(runs_dir) / condition / f'seed{seed}'
-            job = TrialJob(condition, seed, steps, path, run_dir, tuple(launcher_args))
+            job = TrialJob(condition, seed, steps, path, run_dir, tuple(launcher_args), measure)
             if not path.exists():
                 pending.append(job)
                 continue
@@ -145,6 +154,8 @@ def run_trial(job: TrialJob, launcher: Path, stop: threading.Event, timeout_s: f
     record = build_record(job.condition, job.seed, job.steps, job.run_dir, process.returncode,
                           time.monotonic() - started, timed_out=timed_out,
                           started_at=started_at, parallel=parallel)
+    if job.measure is not None:
+        record = job.measure(record, job.run_dir)
     if write:
         write_json(job.result_path, record)
     return record
@@ -178,3 +189,97 @@ def run_trials(jobs: Sequence[TrialJob], launcher: Path, parallel: int, timeout_
         while thread.is_alive():
             thread.join(timeout=0.5)
     return records
+
+
+@dataclass(frozen=True)
+class Backend:
+    """Where a study's trials run (``--backend``, ``--address``, ``--parallel``)."""
+
+    name: str = 'local'
+    address: str = 'auto'
+    parallel: int = 1
+
+
+def add_backend_options(parser, parallel: int = 1) -> None:
+    """Add ``--parallel``, ``--backend`` and ``--address`` (every study command has them)."""
+    parser.add_argument('--parallel', type=positive_int, default=parallel,
+                        help=f'trials run side by side (default {parallel}; each is 4 node '
+                             'processes)')
+    parser.add_argument('--backend', choices=('local', 'ray'), default='local',
+                        help="where trials run: 'local' (default, --parallel at a time) or "
+                             "'ray' (each trial a task on the Ray cluster at --address, as "
+                             "many at a time as its nodes' attention_graph resource allows; "
+                             'docs/cluster.md)')
+    parser.add_argument('--address', default='auto',
+                        help="the Ray cluster with --backend ray (default 'auto': the one "
+                             'started on this machine)')
+
+
+def backend_of(options) -> Backend:
+    return Backend(options.backend, options.address, options.parallel)
+
+
+def launcher_path() -> Path:
+    """Return this environment's ``attention_train``; FileNotFoundError if it is missing."""
+    launcher = Path(sys.executable).parent / 'attention_train'
+    if not os.access(launcher, os.X_OK):
+        raise FileNotFoundError(f'{launcher} not found (run make setup)')
+    return launcher
+
+
+def run_pending(jobs: Sequence[TrialJob], backend: Backend, timeout_s: float,
+                report: Callable[[TrialJob, Optional[dict], int], None],
+                say: Callable[[str], None]) -> Tuple[List[dict], bool]:
+    """
+    Run ``jobs`` on ``backend`` until done, Ctrl-C or SIGTERM; return (records, interrupted).
+
+    On a stop every running launcher gets one SIGINT and stops its own nodes; this returns only
+    once they have (interrupted trials write no result file and run again next time).
+    """
+    launcher = launcher_path()
+    stop, done, box = threading.Event(), threading.Event(), {}
+
+    def work() -> None:
+        try:
+            if backend.name == 'ray':
+                from attention_bringup.study import ray_backend
+                box['records'] = ray_backend.run_trials(jobs, backend.address, timeout_s, stop,
+                                                        report)
+            else:
+                box['records'] = run_trials(jobs, launcher, backend.parallel, timeout_s, stop,
+                                            report)
+        except Exception as error:  # noqa: B902 - said, and the study ends with the rest
+            box['error'] = error
+        finally:
+            done.set()
+
+    previous = signal.signal(signal.SIGTERM, lambda *_: stop.set())
+    threading.Thread(target=work, name='trials', daemon=True).start()
+    # The main thread waits on an Event, not Thread.join: a join interrupted by Ctrl-C can leave
+    # is_alive() False while the thread still runs (Python 3.11), and the trials would be lost.
+    try:
+        while not done.wait(timeout=0.5):
+            pass
+    except KeyboardInterrupt:
+        say('interrupted: stopping the running trials (each launcher stops its nodes)...')
+        stop.set()
+        while not done.is_set():
+            try:
+                done.wait(timeout=0.5)
+            except KeyboardInterrupt:
+                say(f'still stopping; the launchers get SIGTERM after {STOP_GRACE_S:.0f} s')
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+    if 'error' in box:
+        raise ValueError(f'the trials could not run: {box["error"]}')
+    return box.get('records', []), stop.is_set()
+
+
+def log_entry(backend: Backend, records: Sequence[Mapping], started_at: str, wall_s: float,
+              interrupted: bool, **more) -> dict:
+    """One invocation's entry in a study's log (the same fields for every study)."""
+    return {'argv': sys.argv[1:], 'started_at': started_at, 'wall_time_s': round(wall_s, 1),
+            'parallel': backend.parallel, 'backend': backend.name, **more,
+            'cpus': os.cpu_count(), 'trials_run': len(records),
+            'trials_crashed': sum(1 for r in records if not is_usable(r)),
+            'interrupted': interrupted}

@@ -9,11 +9,10 @@ written from them (``--report-only`` skips running).
 """
 
 import argparse
+import datetime
 import json
-import os
 from pathlib import Path
 import sys
-import threading
 import time
 from typing import List, Optional, Sequence
 
@@ -37,7 +36,7 @@ def argument_parser() -> argparse.ArgumentParser:
     parser.add_argument('--seeds', type=int, nargs='+', default=list(SEEDS),
                         help='trial seeds (default 1000..1009, never tuned on)')
     parser.add_argument('--steps', type=positive_int, default=DEFAULT_STEPS)
-    parser.add_argument('--parallel', type=positive_int, default=2)
+    runner.add_backend_options(parser, parallel=2)
     parser.add_argument('--out', default=DEFAULT_OUT)
     parser.add_argument('--report', default=DEFAULT_REPORT)
     parser.add_argument('--runs-dir', default=DEFAULT_RUNS,
@@ -67,16 +66,17 @@ def plan(options) -> List[runner.TrialJob]:
     return jobs
 
 
-def run(options) -> None:
+def run(options) -> bool:
+    """Run the pending trials; return whether the evaluation was interrupted."""
     jobs = plan(options)
     if not jobs:
-        return
-    launcher = Path(sys.executable).parent / 'attention_train'
-    stop = threading.Event()
+        return False
     started = time.monotonic()
 
     def progress(job, record, finished) -> None:
         if record is None:
+            _say(f'{job.run_dir.parent.parent.name} seed {job.seed}: interrupted (runs again '
+                 'next time)')
             return
         elapsed = time.monotonic() - started
         _say(f'[{finished}/{len(jobs)}] {job.run_dir.parent.parent.name} seed {job.seed}: '
@@ -85,17 +85,17 @@ def run(options) -> None:
              f'(about {(len(jobs) - finished) * elapsed / finished / 60:.0f} min left)')
 
     _say(f'running {len(jobs)} trial(s), {options.parallel} at a time')
-    try:
-        records = runner.run_trials(jobs, launcher, options.parallel,
-                                    runner.auto_timeout_s(options.steps), stop, progress)
-    except KeyboardInterrupt:
-        stop.set()
-        raise
+    started_at = datetime.datetime.now().isoformat(timespec='seconds')
+    backend = runner.backend_of(options)
+    records, interrupted = runner.run_pending(jobs, backend,
+                                              runner.auto_timeout_s(options.steps), progress,
+                                              _say)
     log_path = Path(options.out) / TEACHING_LOG
     log = json.loads(log_path.read_text()) if log_path.exists() else []
-    log.append({'argv': sys.argv[1:], 'trials_run': len(records), 'parallel': options.parallel,
-                'wall_time_s': round(time.monotonic() - started, 1), 'cpus': os.cpu_count()})
+    log.append(runner.log_entry(backend, records, started_at, time.monotonic() - started,
+                                interrupted, steps=options.steps))
     write_json(log_path, log)
+    return interrupted
 
 
 def load(options) -> dict:
@@ -115,14 +115,19 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
             done, skipped = refresh_records(Path(options.out) / name,
                                             [SETTINGS[name].condition], Path.cwd())
             _say(f'{name}: {len(done)} result file(s) refreshed, {len(skipped)} skipped')
-    elif not options.report_only:
-        run(options)
+    interrupted = False
+    if not (options.refresh_records or options.report_only):
+        try:
+            interrupted = run(options)
+        except (ValueError, FileNotFoundError) as error:
+            _say(str(error))
+            return 2
     by_setting = load(options)
     result = analysis.analyse(by_setting, options.steps)
     write_json(Path(options.out) / ANALYSIS_FILE, result)
     report.write(Path(options.report), Path(options.out), result, by_setting, options)
     _say(f'wrote {options.report}')
-    return 0
+    return runner.EXIT_INTERRUPTED if interrupted else 0
 
 
 if __name__ == '__main__':
