@@ -13,8 +13,6 @@ launcher (one SIGINT: it stops its nodes cleanly) before it ends. See docs/clust
 """
 
 import os
-from pathlib import Path
-import sys
 import threading
 import time
 from typing import Callable, List, Optional, Sequence
@@ -48,7 +46,7 @@ class _StopFlag:
 def _trial_on_worker(job: runner.TrialJob, timeout_s: float, flag) -> Optional[dict]:
     """Run one trial on this Ray worker; once the study stops, stop its launcher first."""
     import ray
-    launcher = Path(sys.executable).parent / 'attention_train'
+    launcher = runner.launcher_path()
     stop, box = threading.Event(), {}
     thread = threading.Thread(
         target=lambda: box.update(record=runner.run_trial(job, launcher, stop, timeout_s,
