@@ -41,7 +41,8 @@ def parse_value(text: str):
 
 
 def run_trial(seed: int, steps: int, human_like: bool, overrides: dict, pace: float,
-              workdir: Path, table: str = '', knobs: dict = None) -> dict:
+              workdir: Path, table: str = '', knobs: dict = None,
+              stamped_late: bool = False) -> dict:
     from attention_tasks.montezuma.env import EnvConfig, MontezumaEnv
     from feedback_node.action_effects import EffectTable, STRICT
     from feedback_node.human_like import HUMAN_LIKE_SETTING
@@ -57,7 +58,7 @@ def run_trial(seed: int, steps: int, human_like: bool, overrides: dict, pace: fl
         effects = EffectTable.load(Path(table)) if table else None
     teacher = Teacher(TeacherConfig(utterance_interval=-1.0, seed=seed, **knobs), effects)
     from attention_bringup.plan import HUMAN_LIKE_WINDOW_S
-    late = teacher.config.delayed
+    late = teacher.config.delayed and not stamped_late
     config = {'seed': seed, 'alpha': 0.0, 'credit': 'window' if late else 'step'}
     if late:  # as attention_train --human-like sets it
         config['window_min_s'], config['window_max_s'] = HUMAN_LIKE_WINDOW_S
@@ -66,7 +67,7 @@ def run_trial(seed: int, steps: int, human_like: bool, overrides: dict, pace: fl
     agent = TamerAgent(TamerConfig(run_dir=str(run_dir), **config), run_dir)
     agent.start()
     env = MontezumaEnv(EnvConfig(seed=seed))
-    stamped = not teacher.config.delayed
+    stamped = not late  # --stamped-late: late feedback that carries its step's stamp
 
     def see(step):
         s = step.state
@@ -195,6 +196,9 @@ def main(argv=None) -> int:
                              'very action), default the shipped one')
     parser.add_argument('--skull-gone-steps', type=int, default=None,
                         help="the expert's rule for a vanished skull (a huge value: no rule)")
+    parser.add_argument('--stamped-late', action='store_true',
+                        help='late feedback goes in stamped with the step it judges (step '
+                             'credit): attribution perfect, the delay kept (a diagnostic)')
     parser.add_argument('--what', default='', help='a line describing the variant (--out)')
     parser.add_argument('--out', type=Path, default=None)
     args = parser.parse_args(argv)
@@ -208,7 +212,8 @@ def main(argv=None) -> int:
         for seed in args.seeds:
             result = run_trial(seed, args.steps, args.human_like, overrides, args.pace,
                                Path(workdir), args.table,
-                               {k.split('=', 1)[0]: float(k.split('=', 1)[1]) for k in args.knob})
+                               {k.split('=', 1)[0]: float(k.split('=', 1)[1]) for k in args.knob},
+                               args.stamped_late)
             results.append(result)
             print(json.dumps({k: v for k, v in result.items() if k != 'curve'}), flush=True)
             print('  agreement per 500 steps:',
