@@ -1,10 +1,11 @@
 """The DoorKey study's measures and analysis, on progress rows written by hand (pure)."""
 
-import argparse
 import csv
+from dataclasses import replace
 
+from attention_bringup.experiment import engine, spec as specs
+from attention_bringup.experiment.plugins.doorkey import heldout_after
 from attention_bringup.minigrid_study import analysis, report
-from attention_bringup.minigrid_study.cli import heldout_after, write_params
 from attention_bringup.minigrid_study.measures import (
     episodes_of, read_rows, success_curve, trial_measures)
 from attention_bringup.progress import PROGRESS_COLUMNS
@@ -84,12 +85,12 @@ def test_analysis_compares_with_vanilla_and_the_report_says_it(tmp_path):
     test = result['comparisons']['heldout_success'][0]
     assert test['condition'] == 'language' and test['difference'] > 0.5
     assert test['p_holm'] == test['p']  # one comparison: Holm changes nothing
-    options = argparse.Namespace(heldout_fraction=0.25, trials=4, out='out', parallel=2)
+    spec = replace(specs.load('doorkey'), seeds=(0, 1, 2, 3), out='out')
     figures = report.draw_figures(result, tmp_path)
     assert all(path.exists() for path in figures.values())
     path = tmp_path / 'results.md'
-    report.write_report(path, result, options, figures, 'the command', [{'wall_time_s': 600,
-                                                                         'parallel': 2}])
+    report.write_report(path, result, spec, figures, 'the command',
+                        [{'wall_time_s': 600, 'parallel': 2}])
     text = path.read_text()
     assert 'the command' in text and '| language |' in text and 'significant' in text
     assert '![success_curves](success_curves.png)' in text
@@ -99,4 +100,9 @@ def test_the_held_out_part_is_the_end_of_the_budget(tmp_path):
     assert heldout_after(10000, 0.25) == 7500
     with pytest.raises(ValueError):
         heldout_after(10000, 1.0)
-    assert 'heldout_after: 7500' in write_params(tmp_path, 10000, 0.25).read_text()
+    spec = replace(specs.load('doorkey'), out=str(tmp_path), budget=10000)
+    assert 'heldout_after: 7500' in engine.write_params(spec).read_text()
+    every_trial = engine.plan(spec, params=engine.write_params(spec))[0]
+    assert every_trial and all(
+        job.launcher_args[-2:] == ('--params-file', str(tmp_path / 'doorkey_study.yaml'))
+        for job in every_trial)

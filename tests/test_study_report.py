@@ -211,7 +211,7 @@ def test_reach_curves_and_censoring(tmp_path):
     assert summary['steps_to']['1']['censored']['mean'] == (300 + BUDGET + 1) / 2
     curve = analysis.reach_curve(records[:2], 0, [0, 10, 49, 50, 1000])
     assert curve['fraction'] == [0.0, 0.5, 0.5, 1.0, 1.0]
-    assert curve['ci_low'][1] < 0.5 < curve['ci_high'][1]
+    assert curve['low'][1] < 0.5 < curve['high'][1]
 
 
 def test_mixed_budgets_are_refused(tmp_path, no_figures):

@@ -3,7 +3,7 @@
 import math
 import warnings
 
-from attention_bringup.study import stats
+from attention_bringup.experiment import stats
 import numpy as np
 import pytest
 

@@ -11,7 +11,7 @@ setup(
     # The YAML files travel with the Python package (the launcher finds them next to its code)
     # and are also installed to share/ for ros2 launch.
     package_data={package_name: ['config/*.yaml', 'config/conditions/*.yaml',
-                                 'config/tasks/*.yaml']},
+                                 'config/tasks/*.yaml', 'config/experiments/*.yaml']},
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
@@ -20,6 +20,8 @@ setup(
         ('share/' + package_name + '/config/conditions',
          glob(package_name + '/config/conditions/*.yaml')),
         ('share/' + package_name + '/config/tasks', glob(package_name + '/config/tasks/*.yaml')),
+        ('share/' + package_name + '/config/experiments',
+         glob(package_name + '/config/experiments/*.yaml')),
     ],
     install_requires=['setuptools'],
     zip_safe=True,
@@ -31,6 +33,7 @@ setup(
     entry_points={
         'console_scripts': [
             'attention_train = attention_bringup.launcher:main',
+            'attention_experiment = attention_bringup.experiment.cli:main',
             'attention_study = attention_bringup.study.cli:main',
             'attention_teaching = attention_bringup.teaching.cli:main',
             'attention_study_minigrid = attention_bringup.minigrid_study.cli:main',

@@ -7,10 +7,11 @@ condition against vanilla (Hedges' g, Holm's adjustment over the five comparison
 """
 
 from dataclasses import asdict
-from typing import Dict, List, Mapping, Optional, Sequence
+from typing import Dict, List, Mapping, Sequence
 
+from attention_bringup.experiment.stats import (
+    holm_adjust, mean_ci, median, welch_t_test, wilson_interval)
 from attention_bringup.minigrid_study.measures import CURVE_BINS, SUBGOALS
-from attention_bringup.study.stats import holm_adjust, mean_ci, welch_t_test, wilson_interval
 
 BASELINE = 'vanilla'
 COMPARED = ('heldout_success', 'heldout_progress', 'solved', 'training_progress')
@@ -19,14 +20,6 @@ COMPARED = ('heldout_success', 'heldout_progress', 'solved', 'training_progress'
 
 def _values(records: Sequence[Mapping], name: str) -> List[float]:
     return [float(r['doorkey'][name]) for r in records if r['doorkey'].get(name) is not None]
-
-
-def _median(values: Sequence[float]) -> Optional[float]:
-    values = sorted(values)
-    if not values:
-        return None
-    middle = len(values) // 2
-    return values[middle] if len(values) % 2 else (values[middle - 1] + values[middle]) / 2
 
 
 def condition_summary(records: Sequence[Mapping]) -> dict:
@@ -48,7 +41,7 @@ def condition_summary(records: Sequence[Mapping]) -> dict:
     for name in SUBGOALS:
         steps = [r['doorkey']['first_step'][name] for r in records
                  if r['doorkey']['first_step'][name] is not None]
-        summary['first_step'][name] = {'trials': len(steps), 'median': _median(steps)}
+        summary['first_step'][name] = {'trials': len(steps), 'median': median(steps)}
     summary['mean_steps_to'] = {
         name: asdict(mean_ci([r['doorkey']['mean_steps_to'][name] for r in records
                               if r['doorkey']['mean_steps_to'][name] is not None]))

@@ -8,6 +8,8 @@ import os
 from pathlib import Path
 from typing import Dict, List, Mapping, Optional, Sequence
 
+from attention_bringup.experiment.markdown import (
+    mean_interval, minutes, num, p_value, table)
 from attention_bringup.minigrid_study.analysis import BASELINE
 from attention_bringup.minigrid_study.measures import CURVE_BINS, SUBGOALS
 from attention_bringup.study.figures import COLOURS
@@ -74,35 +76,6 @@ def draw_figures(result: Mapping, out_dir: Path) -> Dict[str, Path]:
     return drawn
 
 
-def _num(value: Optional[float], digits: int = 2) -> str:
-    return 'n/a' if value is None else f'{value:.{digits}f}'
-
-
-def _ci(estimate: Mapping, digits: int = 2) -> str:
-    if estimate['mean'] is None:
-        return 'n/a'
-    if estimate['low'] is None:
-        return _num(estimate['mean'], digits)
-    return (f'{estimate["mean"]:.{digits}f} [{estimate["low"]:.{digits}f}, '
-            f'{estimate["high"]:.{digits}f}]')
-
-
-def _p(value: Optional[float]) -> str:
-    if value is None:
-        return 'n/a'
-    return '< 0.001' if value < 0.001 else f'{value:.3f}'
-
-
-def _table(header: Sequence[str], rows: Sequence[Sequence[str]]) -> List[str]:
-    return (['| ' + ' | '.join(header) + ' |', '|' + '---|' * len(header)]
-            + ['| ' + ' | '.join(str(cell) for cell in row) + ' |' for row in rows])
-
-
-def _duration(seconds: float) -> str:
-    minutes = int(round(seconds / 60))
-    return f'{minutes // 60} h {minutes % 60:02d} min' if minutes >= 60 else f'{minutes} min'
-
-
 def _rate(value: Optional[float]) -> str:
     return 'n/a' if value is None else f'{100 * value:.0f} %'
 
@@ -132,9 +105,9 @@ def discussion(result: Mapping) -> List[str]:
         +
         f'Vanilla solved {pooled["solved"]} of {pooled["episodes"]} held-out episodes; the '
         'sub-goals done per held-out episode (0-3: key, door, goal) were '
-        + ', '.join(f'{c} {_num(p)}' for c, p in progress.items())
+        + ', '.join(f'{c} {num(p)}' for c, p in progress.items())
         + '. Uniformly random actions on held-out layouts do '
-        f'{_num(chance.get("progress"))} (the key in {_rate(chance.get("key"))} of '
+        f'{num(chance.get("progress"))} (the key in {_rate(chance.get("key"))} of '
         f'{chance.get("episodes", 0)} episodes, the goal in {_rate(chance.get("solved"))}); '
         f'the expert solves {_rate(chance.get("expert_solved"))}. ' + verdict)
     shares = {c: s.get('action_shares', {}).get('turn', {}).get('mean') for c, s in
@@ -166,9 +139,9 @@ def discussion(result: Mapping) -> List[str]:
             verdict = ('significant after Holm' if condition in significant
                        else 'not significant after Holm')
             lines.append(
-                f'- **{condition}**: {_num(row["mean_a"])} against {_num(row["mean_b"])} '
-                f'({row["difference"]:+.2f}, Hedges g {_num(row["hedges_g"])}, Welch p '
-                f'{_p(row["p"])}, Holm {_p(row["p_holm"])}): {verdict}.')
+                f'- **{condition}**: {num(row["mean_a"])} against {num(row["mean_b"])} '
+                f'({row["difference"]:+.2f}, Hedges g {num(row["hedges_g"])}, Welch p '
+                f'{p_value(row["p"])}, Holm {p_value(row["p_holm"])}): {verdict}.')
         language = tests.get('language')
         if language is not None:
             lines += ['', (
@@ -176,8 +149,8 @@ def discussion(result: Mapping) -> List[str]:
                 + ('Here, yes: ' if 'language' in significant and language['difference'] > 0
                    else 'Not in this study: ')
                 + f'the language condition differs from vanilla by {language["difference"]:+.2f} '
-                  f'sub-goals per held-out episode (Hedges g {_num(language["hedges_g"])}, Holm '
-                  f'p {_p(language["p_holm"])}).')]
+                  f'sub-goals per held-out episode (Hedges g {num(language["hedges_g"])}, Holm '
+                  f'p {p_value(language["p_holm"])}).')]
     reference = result.get('reference')
     if reference and reference.get('conditions'):
         command = reference.get('command', '')
@@ -188,11 +161,11 @@ def discussion(result: Mapping) -> List[str]:
             ref = s['heldout_success_pooled']
             parts.append(f'{condition} solved {s["solved"]["mean"]:.1f} episodes per trial '
                          f'(held-out {ref["solved"]}/{ref["episodes"]}, sub-goals per held-out '
-                         f'episode {_num(s["heldout_progress"]["mean"])}, {s["trials"]} trials)')
+                         f'episode {num(s["heldout_progress"]["mean"])}, {s["trials"]} trials)')
         lines += ['', (
             '**With the teacher judging every step** (a reference study, same budget and '
             'layouts, no delay, no noise, three times the feedback; `' + command + '`, '
-            + _duration(reference.get('wall_time_s', 0.0)) + '): ' + '; '.join(parts) + '. '
+            + minutes(reference.get('wall_time_s', 0.0)) + '): ' + '; '.join(parts) + '. '
             + ('With every judgement, on time and right, the learner does begin to solve '
                'layouts it never saw: what the human-like teacher takes away (two judgements in '
                'three, and which step a judgement is about) is what it needs in this world.'
@@ -223,20 +196,21 @@ def discussion(result: Mapping) -> List[str]:
     return lines
 
 
-def write_report(path: Path, result: Mapping, options, figures: Mapping[str, Path],
+def write_report(path: Path, result: Mapping, spec, figures: Mapping[str, Path],
                  command: str, log: Sequence[Mapping]) -> None:
-    """Write the Markdown report."""
+    """Write the Markdown report of ``spec`` (an ``experiment.spec.Spec``)."""
+    fraction = spec.settings['heldout_fraction']
     path.parent.mkdir(parents=True, exist_ok=True)
     conditions = result['conditions']
     budget = result['budget']
-    heldout_from = int(round(budget * (1 - options.heldout_fraction)))
+    heldout_from = int(round(budget * (1 - fraction)))
     wall = sum(entry.get('wall_time_s', 0.0) for entry in log)
-    parallel = log[-1]['parallel'] if log else options.parallel
+    parallel = log[-1]['parallel'] if log else spec.parallel
     lines = [
         '# Results: language as supervised attention in a world that changes every episode',
         '',
-        f'Generated by `{command}` from the trial result files in `{options.out}/trials/` '
-        f'(wall time of the runs: {_duration(wall)} on {os.cpu_count()} CPU cores, '
+        f'Generated by `{command}` from the trial result files in `{spec.out}/trials/` '
+        f'(wall time of the runs: {minutes(wall)} on {os.cpu_count()} CPU cores, '
         f'{parallel} trials at a time; the same command resumes and rewrites this file).',
         '',
         '## Protocol',
@@ -258,7 +232,7 @@ def write_report(path: Path, result: Mapping, options, figures: Mapping[str, Pat
         '"go to the green square") every 10 s of simulation time (10 steps) and at the start '
         'of every episode in the language conditions, every step in language_every_step.',
         f'- **Budget**: {budget} agent steps per trial, fixed before the study; from agent '
-        f'step {heldout_from} on (the last {options.heldout_fraction:.0%}) every new episode '
+        f'step {heldout_from} on (the last {fraction:.0%}) every new episode '
         "has a held-out layout: seeds of the level generator that no trial's training draws "
         'and that the encoder was not pretrained on.',
         '- **Why this budget**: the issue asks for one at which vanilla succeeds sometimes but '
@@ -269,7 +243,7 @@ def write_report(path: Path, result: Mapping, options, figures: Mapping[str, Pat
         'episodes in 10,000 (the reference study below measures it on 3 seeds). 10,000 steps, '
         "the thesis's trial length, was fixed before the study; the sub-goals (key, door, "
         'goal) measure progress short of success.',
-        f'- **Trials**: {options.trials} per condition, seed = trial index (the same layouts '
+        f'- **Trials**: {len(spec.seeds)} per condition, seed = trial index (the same layouts '
         'in every condition for a seed).',
         '- **Encoder**: pretrained by `tamer_pretrain --task doorkey` on 2,400 DoorKey frames '
         "along the expert's routes with random detours (layouts of their own), frozen.",
@@ -286,29 +260,32 @@ def write_report(path: Path, result: Mapping, options, figures: Mapping[str, Pat
     for condition, s in conditions.items():
         pooled = s['heldout_success_pooled']
         rows.append([
-            condition, f'{s["completed"]}/{s["trials"]}', _ci(s['episodes'], 1),
-            _ci(s['solved'], 1), _ci(s['training_success']), _ci(s['heldout_success']),
-            f'{pooled["solved"]}/{pooled["episodes"]} = {_num(pooled["rate"])} '
-            f'[{_num(pooled["low"])}, {_num(pooled["high"])}]',
+            condition, f'{s["completed"]}/{s["trials"]}', mean_interval(s['episodes'], 1),
+            mean_interval(s['solved'], 1), mean_interval(s['training_success']),
+            mean_interval(s['heldout_success']),
+            f'{pooled["solved"]}/{pooled["episodes"]} = {num(pooled["rate"])} '
+            f'[{num(pooled["low"])}, {num(pooled["high"])}]',
             f'{s["trials_solving_heldout"]}/{s["trials"]}'])
-    lines += _table(['condition', 'completed', 'episodes', 'episodes solved',
-                     'training success', 'held-out success (per trial)',
-                     'held-out pooled [Wilson]', 'trials solving a held-out layout'], rows)
+    lines += table(['condition', 'completed', 'episodes', 'episodes solved',
+                    'training success', 'held-out success (per trial)',
+                    'held-out pooled [Wilson]', 'trials solving a held-out layout'], rows)
     lines += ['', 'Means with t-based 95 % intervals over trials. Success: the fraction of '
               'ended episodes that reached the goal.', '', '### Progress short of the goal', '']
     chance = result.get('chance') or {}
-    rows = [[condition, _ci(s['training_progress']), _ci(s['heldout_progress']),
-             _ci(s['heldout_key_rate']), _ci(s['action_shares']['turn']),
-             _ci(s['action_shares']['forward'])] for condition, s in conditions.items()]
+    rows = [[condition, mean_interval(s['training_progress']),
+             mean_interval(s['heldout_progress']), mean_interval(s['heldout_key_rate']),
+             mean_interval(s['action_shares']['turn']),
+             mean_interval(s['action_shares']['forward'])]
+            for condition, s in conditions.items()]
     if chance:
-        rows.append(['*random actions*', '', _num(chance['progress']), _num(chance['key']), '',
+        rows.append(['*random actions*', '', num(chance['progress']), num(chance['key']), '',
                      ''])
         shares = chance['expert_action_shares']
-        rows.append(['*the expert*', '', '3.00', '1.00', _num(shares['turn']),
-                     _num(shares['forward'])])
-    lines += _table(['condition', 'sub-goals per training episode',
-                     'sub-goals per held-out episode', 'held-out episodes with the key',
-                     'turns (last quarter)', 'forward moves (last quarter)'], rows)
+        rows.append(['*the expert*', '', '3.00', '1.00', num(shares['turn']),
+                     num(shares['forward'])])
+    lines += table(['condition', 'sub-goals per training episode',
+                    'sub-goals per held-out episode', 'held-out episodes with the key',
+                    'turns (last quarter)', 'forward moves (last quarter)'], rows)
     lines += ['', 'Sub-goals per episode: 0-3 (key, door, goal). Random actions and the expert: '
               'played by this command on held-out layouts of the same level.', '',
               '### Steps to each sub-goal', '']
@@ -318,19 +295,19 @@ def write_report(path: Path, result: Mapping, options, figures: Mapping[str, Pat
         for name in SUBGOALS:
             first = s['first_step'][name]
             cells.append(f'{first["trials"]}/{s["trials"]} trials, median step '
-                         f'{_num(first["median"], 0)}')
-        cells += [_ci(s['mean_steps_to'][name], 1) for name in SUBGOALS]
+                         f'{num(first["median"], 0)}')
+        cells += [mean_interval(s['mean_steps_to'][name], 1) for name in SUBGOALS]
         rows.append(cells)
-    lines += _table(['condition'] + [f'first {n} (agent step)' for n in SUBGOALS]
-                    + [f'episode steps to {n} (solved episodes)' for n in SUBGOALS], rows)
+    lines += table(['condition'] + [f'first {n} (agent step)' for n in SUBGOALS]
+                   + [f'episode steps to {n} (solved episodes)' for n in SUBGOALS], rows)
     lines += ['', '### Against vanilla', '']
     for measure, tests in result['comparisons'].items():
         lines += [f'**{measure}**', '']
-        lines += _table(['condition', 'mean', 'vanilla', 'difference', "Hedges' g", 'Welch p',
-                         'Holm p'],
-                        [[t['condition'], _num(t['mean_a']), _num(t['mean_b']),
-                          f'{t["difference"]:+.2f}', _num(t['hedges_g']), _p(t['p']),
-                          _p(t['p_holm'])] for t in tests])
+        lines += table(['condition', 'mean', 'vanilla', 'difference', "Hedges' g", 'Welch p',
+                        'Holm p'],
+                       [[t['condition'], num(t['mean_a']), num(t['mean_b']),
+                         f'{t["difference"]:+.2f}', num(t['hedges_g']), p_value(t['p']),
+                         p_value(t['p_holm'])] for t in tests])
         lines.append('')
     for name in FIGURES:
         if name in figures:

@@ -18,7 +18,7 @@ existed count as unknown (left out), not as zero.
 
 from typing import Dict, List, Mapping, Optional, Sequence
 
-from attention_bringup.study import stats
+from attention_bringup.experiment import stats
 from attention_bringup.study.trials import is_usable, PLACES, POSITIONS
 
 BASELINE = 'vanilla'
@@ -42,27 +42,6 @@ def censored_steps(record: Mapping, position: int) -> int:
     return record['budget'] + 1 if step is None else step
 
 
-def _estimate(values: Sequence[float]) -> dict:
-    estimate = stats.mean_ci(values)
-    return {'n': estimate.n, 'mean': estimate.mean, 'sd': estimate.sd,
-            'ci_low': estimate.low, 'ci_high': estimate.high}
-
-
-def _proportion(successes: int, n: int) -> dict:
-    low, high = stats.wilson_interval(successes, n)
-    return {'k': successes, 'n': n, 'rate': successes / n if n else None,
-            'ci_low': low, 'ci_high': high}
-
-
-def _median(values: Sequence[float]) -> Optional[float]:
-    ordered = sorted(values)
-    if not ordered:
-        return None
-    middle = len(ordered) // 2
-    return float(ordered[middle]) if len(ordered) % 2 else (ordered[middle - 1]
-                                                            + ordered[middle]) / 2.0
-
-
 def step_grid(budget: int, points: int = 101) -> List[int]:
     """Return ``points`` evenly spaced steps from 0 to budget."""
     return sorted({round(budget * i / (points - 1)) for i in range(points)})
@@ -79,13 +58,13 @@ def reach_curve(records: Sequence[Mapping], position: int, grid: Sequence[int]) 
         fraction.append(k / n if n else None)
         low.append(interval[0])
         high.append(interval[1])
-    return {'steps': list(grid), 'fraction': fraction, 'ci_low': low, 'ci_high': high, 'n': n}
+    return {'steps': list(grid), 'fraction': fraction, 'low': low, 'high': high, 'n': n}
 
 
 def furthest_curve(records: Sequence[Mapping]) -> dict:
     """Mean furthest position over steps, with t-based 95 % bands."""
     if not records:
-        return {'steps': [], 'mean': [], 'ci_low': [], 'ci_high': [], 'n': 0}
+        return {'steps': [], 'mean': [], 'low': [], 'high': [], 'n': 0}
     every = records[0]['curve_every']
     length = min(len(record['furthest_curve']) for record in records)
     budget = records[0]['budget']
@@ -96,7 +75,7 @@ def furthest_curve(records: Sequence[Mapping]) -> dict:
         means.append(estimate.mean)
         lows.append(estimate.low if estimate.low is not None else estimate.mean)
         highs.append(estimate.high if estimate.high is not None else estimate.mean)
-    return {'steps': steps, 'mean': means, 'ci_low': lows, 'ci_high': highs, 'n': len(records)}
+    return {'steps': steps, 'mean': means, 'low': lows, 'high': highs, 'n': len(records)}
 
 
 def position_shares(record: Mapping) -> Optional[Dict[str, float]]:
@@ -123,8 +102,8 @@ def where_steps_go(records: Sequence[Mapping]) -> dict:
         'n': len(shares),
         'share': mean_share,
         'settled': settled,
-        'feedback_mean': _estimate([r['feedback_mean'] for r in usable
-                                    if r.get('feedback_mean') is not None]),
+        'feedback_mean': stats.estimate([r['feedback_mean'] for r in usable
+                                         if r.get('feedback_mean') is not None]),
     }
 
 
@@ -147,10 +126,10 @@ def summarize_condition(condition: str, records: Sequence[Mapping]) -> dict:
         reached = [progress_step(r, position) for r in usable
                    if progress_step(r, position) is not None]
         steps_to[str(position)] = {
-            'reach': _proportion(len(reached), n),
-            'reachers': _estimate(reached),
-            'median_reachers': _median(reached),
-            'censored': _estimate([censored_steps(r, position) for r in usable]),
+            'reach': stats.proportion(len(reached), n),
+            'reachers': stats.estimate(reached),
+            'median_reachers': stats.median(reached),
+            'censored': stats.estimate([censored_steps(r, position) for r in usable]),
         }
     return {
         'condition': condition,
@@ -158,16 +137,17 @@ def summarize_condition(condition: str, records: Sequence[Mapping]) -> dict:
         'usable': n,
         'seeds': [record['seed'] for record in usable],
         'outcomes': outcomes,
-        'furthest_position': _estimate([r['furthest_position'] for r in usable]),
+        'furthest_position': stats.estimate([r['furthest_position'] for r in usable]),
         'furthest_counts': {str(p): sum(1 for r in usable if r['furthest_position'] == p)
                             for p in PLACES},
         'steps_to': steps_to,
-        'key': _proportion(sum(1 for r in usable if r['key']), n),
-        'episodes': _estimate([r['episodes'] for r in usable]),
-        'lives_lost': _estimate([r['lives_lost'] for r in usable]),
-        'wall_time_s': _estimate([r['wall_time_s'] for r in usable]),
-        'updates_per_step': _estimate([r['learner_updates'] / r['steps'] for r in usable
-                                       if r.get('learner_updates') is not None and r['steps']]),
+        'key': stats.proportion(sum(1 for r in usable if r['key']), n),
+        'episodes': stats.estimate([r['episodes'] for r in usable]),
+        'lives_lost': stats.estimate([r['lives_lost'] for r in usable]),
+        'wall_time_s': stats.estimate([r['wall_time_s'] for r in usable]),
+        'updates_per_step': stats.estimate([r['learner_updates'] / r['steps'] for r in usable
+                                            if r.get('learner_updates') is not None
+                                            and r['steps']]),
         'where': where_steps_go(usable),
     }
 

@@ -74,7 +74,7 @@ def plot_reach(analysis: Mapping, conditions: Sequence[str], positions: Sequence
             axis.step(curve['steps'], curve['fraction'], where='post', color=colour,
                       label=f'{condition} (n={curve["n"]})')
             if bands:
-                axis.fill_between(curve['steps'], curve['ci_low'], curve['ci_high'],
+                axis.fill_between(curve['steps'], curve['low'], curve['high'],
                                   step='post', color=colour, alpha=0.25, linewidth=0)
         _style_panel(axis, f'critical position {position}', analysis['budget'])
     note = ('shaded: Wilson 95 % interval over trials' if bands else
@@ -99,7 +99,7 @@ def plot_by_condition(analysis: Mapping, conditions: Sequence[str], path: Path) 
             colour = colours(position / 5.0)
             axis.step(curve['steps'], curve['fraction'], where='post', color=colour,
                       label=f'position {position}')
-            axis.fill_between(curve['steps'], curve['ci_low'], curve['ci_high'], step='post',
+            axis.fill_between(curve['steps'], curve['low'], curve['high'], step='post',
                               color=colour, alpha=0.12, linewidth=0)
         _style_panel(axis, f'{condition} (n={curves["0"]["n"]})', analysis['budget'])
     _finish_panels(plt, figure, axes, len(present),
@@ -133,7 +133,7 @@ def plot_furthest(analysis: Mapping, conditions: Sequence[str], path: Path) -> b
         colour = COLOURS.get(condition)
         axis.plot(curve['steps'], curve['mean'], color=colour,
                   label=f'{condition} (n={curve["n"]})')
-        axis.fill_between(curve['steps'], curve['ci_low'], curve['ci_high'], color=colour,
+        axis.fill_between(curve['steps'], curve['low'], curve['high'], color=colour,
                           alpha=0.1, linewidth=0)
     axis.set_xlabel('agent step')
     axis.set_ylabel('furthest critical position so far')

@@ -9,7 +9,8 @@ import os
 from pathlib import Path
 from typing import Mapping, Optional, Sequence
 
-from attention_bringup.study import discussion, stats
+from attention_bringup.experiment import stats
+from attention_bringup.study import discussion
 from attention_bringup.study.analysis import BASELINE, MEASURES, SETTLED_SHARE
 from attention_bringup.study.discussion import _num, fmt_p
 from attention_bringup.study.trials import PLACES, POSITIONS
@@ -43,10 +44,10 @@ FIGURE_CAPTIONS = {
 def _mean_ci(estimate: Mapping, digits: int = 2) -> str:
     if estimate['mean'] is None:
         return 'n/a'
-    if estimate['ci_low'] is None:
+    if estimate['low'] is None:
         return f'{estimate["mean"]:.{digits}f}'
-    return (f'{estimate["mean"]:.{digits}f} [{estimate["ci_low"]:.{digits}f}, '
-            f'{estimate["ci_high"]:.{digits}f}]')
+    return (f'{estimate["mean"]:.{digits}f} [{estimate["low"]:.{digits}f}, '
+            f'{estimate["high"]:.{digits}f}]')
 
 
 def _mean_sd(estimate: Mapping, digits: int = 1) -> str:
@@ -60,7 +61,7 @@ def _proportion(proportion: Mapping) -> str:
     if not proportion['n']:
         return 'n/a'
     return (f'{proportion["k"]}/{proportion["n"]} '
-            f'({100 * proportion["ci_low"]:.0f}–{100 * proportion["ci_high"]:.0f} %)')
+            f'({100 * proportion["low"]:.0f}–{100 * proportion["high"]:.0f} %)')
 
 
 def _duration(seconds: float) -> str:
@@ -133,7 +134,7 @@ def protocol_section(protocol: Mapping, analysis: Mapping) -> str:
         "furthest position and steps to positions 1 to 3; effect size Hedges' g (Cohen's d "
         'with pooled sd, small-sample corrected; sign = condition minus vanilla). p-values '
         'are given raw and Holm-adjusted over all tests in the table. The t distribution, '
-        "Welch's test and the Wilson intervals are scipy.stats' (`study/stats.py`), tested "
+        "Welch's test and the Wilson intervals are scipy.stats' (`experiment/stats.py`), tested "
         "against published values (t tables, R's `t.test`, Newcombe 1998).",
         '- Key rate: fraction of trials in which the agent picked up the key at least once. '
         'Episodes: episodes begun (an episode ends on game over or leaving Room 1). Lives '

@@ -46,6 +46,8 @@ class TrialJob:
     measure: Optional[Callable[[dict, Path], dict]] = None
     """A study's own measures, added to the record from the run folder where the trial ran
     (a module-level function: on Ray it runs on the worker, beside the run folder)."""
+    arm: str = ''
+    """The experiment's arm (its condition when an arm is a condition)."""
 
 
 def auto_timeout_s(steps: int) -> float:
@@ -56,7 +58,7 @@ def auto_timeout_s(steps: int) -> float:
 def plan_trials(conditions: Sequence[str], trials: int, steps: int, out_dir: Path,
                 runs_dir: Path, retry_crashed: bool = False,
                 launcher_args: Sequence[str] = (), seeds: Optional[Sequence[int]] = None,
-                measure: Optional[Callable[[dict, Path], dict]] = None
+                measure: Optional[Callable[[dict, Path], dict]] = None, arm: str = ''
                 ) -> Tuple[List[TrialJob], List[Path]]:
     """
     Return (trials to run, result files that exist and are kept).
@@ -69,7 +71,8 @@ def plan_trials(conditions: Sequence[str], trials: int, steps: int, out_dir: Pat
         for condition in conditions:
             path = trial_path(out_dir, condition, seed)
             run_dir = Path(runs_dir) / condition / f'seed{seed}'
-            job = TrialJob(condition, seed, steps, path, run_dir, tuple(launcher_args), measure)
+            job = TrialJob(condition, seed, steps, path, run_dir, tuple(launcher_args), measure,
+                           arm or condition)
             if not path.exists():
                 pending.append(job)
                 continue
@@ -200,10 +203,11 @@ class Backend:
     parallel: int = 1
 
 
-def add_backend_options(parser, parallel: int = 1) -> None:
+def add_backend_options(parser, parallel: Optional[int] = 1) -> None:
     """Add ``--parallel``, ``--backend`` and ``--address`` (every study command has them)."""
+    default = "the spec's" if parallel is None else parallel
     parser.add_argument('--parallel', type=positive_int, default=parallel,
-                        help=f'trials run side by side (default {parallel}; each is 4 node '
+                        help=f'trials run side by side (default {default}; each is 4 node '
                              'processes)')
     parser.add_argument('--backend', choices=('local', 'ray'), default='local',
                         help="where trials run: 'local' (default, --parallel at a time) or "

@@ -2,7 +2,8 @@
 Statistics for small samples, the distributions and tests from scipy.stats.
 
 Welch's unpaired t-test, t-based confidence intervals of a mean, Wilson score intervals of a
-proportion, Cohen's d / Hedges' g and Holm's adjustment, as plain floats and dataclasses.
+proportion, Cohen's d / Hedges' g and Holm's adjustment, as plain floats and dataclasses. What
+an analysis stores has one shape: ``estimate`` (a mean) and ``proportion`` (a rate).
 """
 
 from dataclasses import dataclass
@@ -158,3 +159,28 @@ def holm_adjust(p_values: Sequence[Optional[float]]) -> List[Optional[float]]:
         running = max(running, min(1.0, (m - rank) * p))
         adjusted[i] = running
     return adjusted
+
+
+def estimate(values: Sequence[float]) -> dict:
+    """Return a mean and its 95 % t interval as stored: {n, mean, sd, low, high} (one shape)."""
+    found = mean_ci(values)
+    return {'n': found.n, 'mean': found.mean, 'sd': found.sd, 'low': found.low,
+            'high': found.high}
+
+
+def proportion(successes: int, n: int) -> dict:
+    """Return a proportion and its Wilson 95 % interval as stored: {k, n, rate, low, high}."""
+    low, high = wilson_interval(successes, n)
+    return {'k': successes, 'n': n, 'rate': successes / n if n else None, 'low': low,
+            'high': high}
+
+
+def median(values: Sequence[float]) -> Optional[float]:
+    """Return the middle value (the mean of the middle two for an even count); None if empty."""
+    ordered = sorted(values)
+    if not ordered:
+        return None
+    middle = len(ordered) // 2
+    if len(ordered) % 2:
+        return float(ordered[middle])
+    return (ordered[middle - 1] + ordered[middle]) / 2.0
