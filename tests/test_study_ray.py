@@ -1,8 +1,9 @@
 """
-``attention_study --backend ray`` on a real local Ray cluster, against the local backend.
+``attention_experiment SPEC --backend ray`` on a real local Ray cluster, against the local backend.
 
 The cluster is a head and one more node, each with one unit of the graph resource, on
-loopback. Also: Ctrl-C during a study on either backend leaves no process of the graph.
+loopback. The spec: 2 arms x 2 seeds of 300-step trials. Also: Ctrl-C during a study on either
+backend leaves no process of the graph.
 """
 
 import json
@@ -14,11 +15,13 @@ import sys
 import time
 
 from attention_bringup.processes import is_running
-from attention_bringup.study.ray_backend import GRAPH_RESOURCE, LOOPBACK
+from attention_bringup.experiment.ray_backend import GRAPH_RESOURCE, LOOPBACK
 from harness import wait_until
 import pytest
+import yaml
 
 STUDY = str(Path(sys.executable).parent / 'attention_study')
+EXPERIMENT = str(Path(sys.executable).parent / 'attention_experiment')
 STEPS = 300
 SAME_FIELDS = ('condition', 'seed', 'budget', 'outcome', 'steps', 'parameters', 'trainer')
 """What a trial's result file says whichever backend ran it (times and folders differ)."""
@@ -67,10 +70,16 @@ def test_the_ray_cluster_listens_on_loopback_only(cluster):
 
 
 def _study(out: Path, *extra: str) -> subprocess.CompletedProcess:
-    return subprocess.run(
-        [STUDY, '--conditions', 'vanilla', 'language', '--trials', '2', '--steps', str(STEPS),
-         '--out', str(out), '--report', str(out / 'results.md'), *extra],
-        capture_output=True, text=True, timeout=600)
+    """Run a 2-arm x 2-seed spec of the thesis's study, its folders under ``out``."""
+    out.mkdir(parents=True)
+    spec = out / 'spec.yaml'
+    spec.write_text(yaml.safe_dump({
+        'name': 'two_by_two', 'plugin': 'thesis', 'budget': STEPS, 'seeds': [0, 1],
+        'out': str(out), 'report': str(out / 'results.md'), 'runs_dir': str(out / 'runs'),
+        'launcher_args': ['--trainer', 'thesis'],
+        'arms': [{'name': 'vanilla'}, {'name': 'language'}]}))
+    return subprocess.run([EXPERIMENT, str(spec), *extra], capture_output=True, text=True,
+                          timeout=600)
 
 
 def _records(out: Path) -> dict:
@@ -145,10 +154,11 @@ def test_ctrl_c_during_a_study_leaves_no_process_of_the_graph(cluster, tmp_path,
 
 
 @pytest.mark.topics
-@pytest.mark.parametrize('command', ['attention_study_minigrid', 'attention_teaching'])
+@pytest.mark.parametrize('command', ['attention_experiment', 'attention_teaching'])
 def test_ctrl_c_during_the_other_studies_leaves_no_process_of_the_graph(tmp_path, command):
-    # Both used to re-raise Ctrl-C around their trial threads: the command died with a
-    # traceback and its launchers (in sessions of their own) ran on.
+    # attention_study_minigrid and attention_teaching used to re-raise Ctrl-C around their
+    # trial threads: the command died with a traceback and its launchers ran on. Every study
+    # command now runs on the engine (attention_study_minigrid is the doorkey spec's wrapper).
     out = tmp_path / 'study'
     argv = [str(Path(sys.executable).parent / command), '--steps', '100000', '--out', str(out),
             '--report', str(out / 'report.md'), '--runs-dir', str(out / 'runs')]
@@ -157,7 +167,8 @@ def test_ctrl_c_during_the_other_studies_leaves_no_process_of_the_graph(tmp_path
         run_dir = out / 'runs' / 'every_step_vanilla' / 'vanilla' / 'seed1000'
         result = out / 'every_step_vanilla' / 'trials' / 'vanilla' / 'seed1000.json'
     else:
-        argv += ['--conditions', 'vanilla', '--trials', '1']
+        argv[1:1] = ['doorkey']
+        argv += ['--arms', 'vanilla', '--seeds', '0']
         run_dir = out / 'runs' / 'vanilla' / 'seed0'
         result = out / 'trials' / 'vanilla' / 'seed0.json'
     _interrupt_and_check(argv, run_dir, result)

@@ -17,7 +17,7 @@ import threading
 import time
 
 from attention_bringup.progress import PROGRESS_COLUMNS
-from attention_bringup.study import runner, trials
+from attention_bringup.experiment import runner, trials
 from attention_bringup.study.analysis import censored_steps, progress_step
 from attention_common.run_files import LAUNCHER_LOG
 import pytest
@@ -284,7 +284,8 @@ def test_run_trials_runs_each_job_once_side_by_side(tmp_path, fake_launcher):
 DRIVER = textwrap.dedent('''\
     """Run attention_study's main with the stand-in launcher in place of attention_train."""
     import sys
-    from attention_bringup.study import cli, runner
+    from attention_bringup.experiment import runner
+    from attention_bringup.study import cli
     real_run_trial = runner.run_trial
     runner.run_trial = lambda job, launcher, *args: real_run_trial(job, sys.argv[1], *args)
     sys.exit(cli.main(sys.argv[2:]))

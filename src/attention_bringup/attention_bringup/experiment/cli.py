@@ -16,9 +16,8 @@ import argparse
 import sys
 from typing import Optional, Sequence
 
-from attention_bringup.experiment import engine, spec as specs
+from attention_bringup.experiment import engine, runner, spec as specs
 from attention_bringup.plan import positive_int
-from attention_bringup.study import runner
 
 
 def add_run_options(parser: argparse.ArgumentParser, parallel: Optional[int]) -> None:

@@ -16,10 +16,9 @@ import shlex
 import sys
 from typing import Optional, Sequence
 
-from attention_bringup.experiment import engine, spec as specs
+from attention_bringup.experiment import engine, runner, spec as specs
 from attention_bringup.graph import CONDITIONS
 from attention_bringup.plan import positive_int
-from attention_bringup.study import runner
 
 SPEC = specs.load('doorkey')
 EVERY_STEP = specs.load('doorkey_every_step')

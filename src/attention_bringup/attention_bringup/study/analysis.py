@@ -19,7 +19,7 @@ existed count as unknown (left out), not as zero.
 from typing import Dict, List, Mapping, Optional, Sequence
 
 from attention_bringup.experiment import stats
-from attention_bringup.study.trials import is_usable, PLACES, POSITIONS
+from attention_bringup.experiment.trials import is_usable, PLACES, POSITIONS
 
 BASELINE = 'vanilla'
 TESTED_POSITIONS = (1, 2, 3)

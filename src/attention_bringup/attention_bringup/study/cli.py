@@ -20,10 +20,9 @@ import shlex
 import sys
 from typing import List, Optional, Sequence
 
-from attention_bringup.experiment import engine, spec as specs
+from attention_bringup.experiment import engine, runner, spec as specs
 from attention_bringup.graph import CONDITIONS
 from attention_bringup.plan import positive_int
-from attention_bringup.study import runner
 from feedback_node.teacher import TRAINERS
 
 SPEC = specs.load('thesis')

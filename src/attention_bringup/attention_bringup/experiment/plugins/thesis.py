@@ -10,7 +10,8 @@ from pathlib import Path
 from typing import Mapping
 
 from attention_bringup.experiment.spec import Spec
-from attention_bringup.study import analysis, figures, report, runner
+from attention_bringup.experiment import runner
+from attention_bringup.study import analysis, figures, report
 
 
 def progress(record: Mapping) -> str:

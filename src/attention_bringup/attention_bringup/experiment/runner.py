@@ -21,7 +21,7 @@ import time
 from typing import Callable, List, Mapping, Optional, Sequence, Tuple
 
 from attention_bringup.plan import positive_int
-from attention_bringup.study.trials import (
+from attention_bringup.experiment.trials import (
     build_record, is_usable, read_json, trial_path, write_json)
 from attention_common.isolation import isolated_environ
 from attention_common.run_files import LAUNCHER_LOG
@@ -246,7 +246,7 @@ def run_pending(jobs: Sequence[TrialJob], backend: Backend, timeout_s: float,
     def work() -> None:
         try:
             if backend.name == 'ray':
-                from attention_bringup.study import ray_backend
+                from attention_bringup.experiment import ray_backend
                 box['records'] = ray_backend.run_trials(jobs, backend.address, timeout_s, stop,
                                                         report)
             else:

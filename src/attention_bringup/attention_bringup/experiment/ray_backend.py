@@ -17,8 +17,8 @@ import threading
 import time
 from typing import Callable, List, Optional, Sequence
 
-from attention_bringup.study import runner
-from attention_bringup.study.trials import write_json
+from attention_bringup.experiment import runner
+from attention_bringup.experiment.trials import write_json
 
 GRAPH_RESOURCE = 'attention_graph'
 LOOPBACK = {'RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER': '0'}

@@ -1,0 +1,127 @@
+"""The experiment engine: specs, planning, and a whole run with a stand-in launcher (no ROS)."""
+
+import json
+import sys
+
+from attention_bringup.experiment import cli, engine, runner, spec as specs
+from attention_bringup.experiment.spec import SpecError
+import pytest
+from test_study_trials import FAKE_LAUNCHER
+import yaml
+
+GOOD = {'name': 'tiny', 'plugin': 'teaching', 'task': 'montezuma', 'budget': 20,
+        'seeds': [0, 1], 'out': 'out', 'report': 'report.md', 'runs_dir': 'runs',
+        'layout': 'by_arm', 'launcher_args': ['--trainer', 'teacher'],
+        'arms': [{'name': 'plain', 'condition': 'vanilla', 'text': 'the plain arm'},
+                 {'name': 'late', 'condition': 'vanilla', 'launcher_args': ['--human-like']}],
+        'comparisons': [{'arm': 'late', 'baseline': 'plain'}],
+        'measures': ['steps_to_key', 'lives_lost'],
+        'targets': {'plain': {'min_keys': 1}}}
+
+
+@pytest.mark.parametrize('name', sorted(p.stem for p in specs.SPEC_DIR.glob('*.yaml')))
+def test_every_shipped_spec_loads_with_its_plugin(name):
+    spec = specs.load(name)
+    assert spec.name == name and spec.arms and spec.seeds and spec.budget > 0
+    plugin = engine.plugin_of(spec)
+    assert callable(plugin.analyse) and callable(plugin.write_report)
+
+
+@pytest.mark.parametrize('change, says', [
+    ({'budget': None}, 'missing field(s) budget'),
+    ({'colour': 'red'}, 'unknown field(s) colour'),
+    ({'budget': 0}, 'budget must be a positive'),
+    ({'seeds': [1, 1]}, 'seeds repeat'),
+    ({'seeds': {'start': 3}}, 'seeds as a mapping'),
+    ({'layout': 'by_condition'}, 'two arms of one condition need layout: by_arm'),
+    ({'arms': [{'name': 'x', 'condition': 'telepathy'}]}, "condition 'telepathy' is not one"),
+    ({'arms': [{'name': 'vanilla'}, {'name': 'vanilla'}]}, 'arm names repeat'),
+    ({'arms': [{'name': 'vanilla', 'colour': 1}]}, 'unknown field(s)'),
+    ({'comparisons': [{'arm': 'late', 'baseline': 'nobody'}]}, "unknown arm 'nobody'"),
+    ({'parameters': {'env_node': 3}}, 'parameters must map node names'),
+])
+def test_a_bad_spec_is_refused_naming_the_file_and_what_is_wrong(tmp_path, change, says):
+    data = {k: v for k, v in dict(GOOD, **change).items() if v is not None}
+    path = tmp_path / 'bad.yaml'
+    path.write_text(yaml.safe_dump(data))
+    with pytest.raises(SpecError) as error:
+        specs.load(str(path))
+    assert str(path) in str(error.value) and says in str(error.value)
+
+
+def test_the_command_says_what_is_wrong_with_a_spec_and_exits_2(tmp_path, capsys):
+    assert cli.main([str(tmp_path / 'missing.yaml')]) == 2
+    assert 'cannot read it' in capsys.readouterr().err
+    assert cli.main(['no_such_spec']) == 2
+    assert 'teaching' in capsys.readouterr().err  # names the shipped ones
+
+
+def test_a_spec_plans_seed_by_seed_with_each_arms_options_and_folders(tmp_path):
+    spec = specs.from_dict(dict(GOOD, out=str(tmp_path / 'out'), runs_dir=str(tmp_path / 'r'),
+                                parameters={'env_node': {'max_steps': 500}}))
+    params = engine.write_params(spec)
+    assert 'max_steps: 500' in params.read_text()
+    jobs, kept = engine.plan(spec, params=params)
+    assert kept == [] and [(job.arm, job.seed) for job in jobs] == [
+        ('plain', 0), ('late', 0), ('plain', 1), ('late', 1)]
+    late = jobs[1]
+    assert late.result_path == tmp_path / 'out' / 'late' / 'trials' / 'vanilla' / 'seed0.json'
+    assert late.run_dir == (tmp_path / 'r' / 'late' / 'vanilla' / 'seed0').resolve()
+    assert late.launcher_args == ('--task', 'montezuma', '--trainer', 'teacher', '--human-like',
+                                  '--params-file', str(params.resolve()))
+    narrowed = spec.select(['late'], [1], 40)
+    assert [(job.arm, job.seed, job.steps) for job in engine.plan(narrowed)[0]] == [
+        ('late', 1, 40)]
+    with pytest.raises(SpecError, match="no arm 'other'"):
+        spec.select(['other'])
+
+
+@pytest.fixture
+def stand_in(tmp_path, monkeypatch):
+    """A spec of 2 arms x 2 seeds whose trials the stand-in launcher runs."""
+    launcher = tmp_path / 'attention_train'
+    launcher.write_text(FAKE_LAUNCHER.format(python=sys.executable))
+    launcher.chmod(0o755)
+    monkeypatch.setattr(runner, 'launcher_path', lambda: launcher)
+    for arm in ('plain', 'late'):
+        (tmp_path / 'runs' / arm).mkdir(parents=True)
+        (tmp_path / 'runs' / arm / 'mode').write_text('ok')
+    path = tmp_path / 'tiny.yaml'
+    path.write_text(yaml.safe_dump(dict(GOOD, out=str(tmp_path / 'out'),
+                                        report=str(tmp_path / 'report.md'),
+                                        runs_dir=str(tmp_path / 'runs'))))
+    return path
+
+
+def test_a_spec_runs_resumes_and_reports_through_one_engine(tmp_path, stand_in, capsys):
+    assert cli.main([str(stand_in), '--parallel', '2']) == 0
+    out = tmp_path / 'out'
+    files = sorted(str(p.relative_to(out)) for p in out.glob('*/trials/*/*.json'))
+    assert files == ['late/trials/vanilla/seed0.json', 'late/trials/vanilla/seed1.json',
+                     'plain/trials/vanilla/seed0.json', 'plain/trials/vanilla/seed1.json']
+    log = json.loads((out / 'study_log.json').read_text())
+    assert [(e['trials_run'], e['parallel'], e['backend']) for e in log] == [(4, 2, 'local')]
+    analysis = json.loads((out / 'analysis.json').read_text())
+    assert {name: s['n'] for name, s in analysis['settings'].items()} == {'plain': 2, 'late': 2}
+    assert set(analysis['settings']['plain']['lives_lost']) == {'n', 'mean', 'sd', 'low',
+                                                               'high'}  # one estimate shape
+    assert list(analysis['comparisons']['late vs plain']) == ['steps_to_key', 'lives_lost']
+    report = (tmp_path / 'report.md').read_text()
+    assert '- `plain`: the plain arm (`attention_train --condition vanilla `)' in report
+    assert '| `late` | 2 |' in report
+    assert '`plain`: key in at least 1 of 10. Measured: 0 of 2' in report
+    # Resumed: every trial has its result, so nothing runs and the log gains no entry.
+    capsys.readouterr()
+    assert cli.main([str(stand_in)]) == 0
+    assert '4 trial(s) already have results: skipped' in capsys.readouterr().err
+    assert len(json.loads((out / 'study_log.json').read_text())) == 1
+    # One arm's crashed trial runs again only when asked.
+    crashed = out / 'late' / 'trials' / 'vanilla' / 'seed1.json'
+    record = json.loads(crashed.read_text())
+    crashed.write_text(json.dumps(dict(record, outcome='crashed')))
+    assert cli.main([str(stand_in), '--report-only']) == 0
+    assert cli.main([str(stand_in), '--retry-crashed', '--arms', 'late']) == 0
+    assert json.loads(crashed.read_text())['outcome'] == 'completed'
+    assert len(list((crashed.parent / 'retried').glob('*.json'))) == 1
+    assert json.loads((out / 'study_log.json').read_text())[-1]['trials_run'] == 1
+
