@@ -78,7 +78,7 @@ def test_a_spec_plans_seed_by_seed_with_each_arms_options_and_folders(tmp_path):
 
 @pytest.fixture
 def stand_in(tmp_path, monkeypatch):
-    """A spec of 2 arms x 2 seeds whose trials the stand-in launcher runs."""
+    """Write a spec of 2 arms x 2 seeds whose trials the stand-in launcher runs."""
     launcher = tmp_path / 'attention_train'
     launcher.write_text(FAKE_LAUNCHER.format(python=sys.executable))
     launcher.chmod(0o755)
@@ -103,8 +103,8 @@ def test_a_spec_runs_resumes_and_reports_through_one_engine(tmp_path, stand_in, 
     assert [(e['trials_run'], e['parallel'], e['backend']) for e in log] == [(4, 2, 'local')]
     analysis = json.loads((out / 'analysis.json').read_text())
     assert {name: s['n'] for name, s in analysis['settings'].items()} == {'plain': 2, 'late': 2}
-    assert set(analysis['settings']['plain']['lives_lost']) == {'n', 'mean', 'sd', 'low',
-                                                               'high'}  # one estimate shape
+    lives = analysis['settings']['plain']['lives_lost']
+    assert set(lives) == {'n', 'mean', 'sd', 'low', 'high'}  # one estimate shape
     assert list(analysis['comparisons']['late vs plain']) == ['steps_to_key', 'lives_lost']
     report = (tmp_path / 'report.md').read_text()
     assert '- `plain`: the plain arm (`attention_train --condition vanilla `)' in report
@@ -124,4 +124,3 @@ def test_a_spec_runs_resumes_and_reports_through_one_engine(tmp_path, stand_in, 
     assert json.loads(crashed.read_text())['outcome'] == 'completed'
     assert len(list((crashed.parent / 'retried').glob('*.json'))) == 1
     assert json.loads((out / 'study_log.json').read_text())[-1]['trials_run'] == 1
-

@@ -14,8 +14,8 @@ import subprocess
 import sys
 import time
 
-from attention_bringup.processes import is_running
 from attention_bringup.experiment.ray_backend import GRAPH_RESOURCE, LOOPBACK
+from attention_bringup.processes import is_running
 from harness import wait_until
 import pytest
 import yaml

@@ -7,8 +7,8 @@ on them, and checks that the tables, tests and generated discussion follow those
 
 from pathlib import Path
 
-from attention_bringup.graph import CONDITIONS
 from attention_bringup.experiment import trials
+from attention_bringup.graph import CONDITIONS
 from attention_bringup.study import analysis, cli, figures
 from attention_common.run_files import STUDY_LOG
 import pytest

@@ -16,8 +16,8 @@ import textwrap
 import threading
 import time
 
-from attention_bringup.progress import PROGRESS_COLUMNS
 from attention_bringup.experiment import runner, trials
+from attention_bringup.progress import PROGRESS_COLUMNS
 from attention_bringup.study.analysis import censored_steps, progress_step
 from attention_common.run_files import LAUNCHER_LOG
 import pytest

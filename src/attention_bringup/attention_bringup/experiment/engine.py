@@ -16,8 +16,8 @@ import sys
 import time
 from typing import Callable, Dict, List, Optional, Tuple
 
-from attention_bringup.experiment.spec import Arm, Spec, SpecError
 from attention_bringup.experiment import runner
+from attention_bringup.experiment.spec import Arm, Spec, SpecError
 from attention_bringup.experiment.trials import (
     load_records, read_json, refresh_records, trial_path, write_json)
 from attention_common.run_files import ANALYSIS_FILE

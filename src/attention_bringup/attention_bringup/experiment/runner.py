@@ -20,9 +20,9 @@ import threading
 import time
 from typing import Callable, List, Mapping, Optional, Sequence, Tuple
 
-from attention_bringup.plan import positive_int
 from attention_bringup.experiment.trials import (
     build_record, is_usable, read_json, trial_path, write_json)
+from attention_bringup.plan import positive_int
 from attention_common.isolation import isolated_environ
 from attention_common.run_files import LAUNCHER_LOG
 

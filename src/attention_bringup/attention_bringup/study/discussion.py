@@ -9,8 +9,8 @@ the numbers: "significant" means Welch p < 0.05 (unadjusted; Holm-adjusted p is 
 
 from typing import List, Mapping, Optional
 
-from attention_bringup.study.analysis import BASELINE, SETTLED_SHARE, TESTED_POSITIONS
 from attention_bringup.experiment.trials import POSITIONS
+from attention_bringup.study.analysis import BASELINE, SETTLED_SHARE, TESTED_POSITIONS
 from attention_tasks.montezuma.critical_positions import DEFAULT_RADIUS
 from feedback_node.reward import RewardConfig
 

@@ -10,10 +10,10 @@ from pathlib import Path
 from typing import Mapping, Optional, Sequence
 
 from attention_bringup.experiment import stats
+from attention_bringup.experiment.trials import PLACES, POSITIONS
 from attention_bringup.study import discussion
 from attention_bringup.study.analysis import BASELINE, MEASURES, SETTLED_SHARE
 from attention_bringup.study.discussion import _num, fmt_p
-from attention_bringup.experiment.trials import PLACES, POSITIONS
 from attention_tasks.montezuma.critical_positions import DEFAULT_RADIUS
 
 CONDITION_TEXT = {

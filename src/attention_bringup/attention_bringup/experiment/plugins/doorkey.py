@@ -11,9 +11,9 @@ from pathlib import Path
 from typing import Mapping
 
 from attention_bringup.experiment.spec import Spec
+from attention_bringup.experiment.trials import read_json
 from attention_bringup.minigrid_study import analysis, report
 from attention_bringup.minigrid_study.measures import chance_levels, read_rows, trial_measures
-from attention_bringup.experiment.trials import read_json
 from attention_common.run_files import ANALYSIS_FILE, PROGRESS_FILE
 
 

@@ -9,8 +9,8 @@ import os
 from pathlib import Path
 from typing import Mapping
 
-from attention_bringup.experiment.spec import Spec
 from attention_bringup.experiment import runner
+from attention_bringup.experiment.spec import Spec
 from attention_bringup.study import analysis, figures, report
 
 
