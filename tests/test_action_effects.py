@@ -11,10 +11,10 @@ does) and calling it different when it is the same (the teacher is only stricter
 """
 
 from attention_common.joy_actions import NUM_ACTIONS
-from attention_tasks.montezuma.expert import RoomOneExpert
-from feedback_node.action_effects import (
+from attention_tasks.montezuma.action_effects import (
     agreed_partition, build_table, EffectTable, Measured, partition_of, Situation, STRICT)
-from feedback_node.measure_effects import measure_partition, play_states, situation_of
+from attention_tasks.montezuma.expert import RoomOneExpert
+from attention_tasks.montezuma.measure_effects import measure_partition, play_states, situation_of
 import pytest
 
 

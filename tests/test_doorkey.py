@@ -1,8 +1,9 @@
 """The DoorKey task's pure core on the real MiniGrid level: layouts, expert, progress, words."""
 
 from attention_tasks.doorkey.expert import DROP, next_action, PICKUP, TOGGLE
-from attention_tasks.doorkey.language import progress, sentence
-from attention_tasks.doorkey.world import DistractorDoorKeyEnv, DoorKeyConfig, observe, state_of
+from attention_tasks.doorkey.language import sentence
+from attention_tasks.doorkey.world import (
+    DistractorDoorKeyEnv, DoorKeyConfig, observe, progress, state_of)
 import numpy as np
 import pytest
 

@@ -2,8 +2,9 @@
 
 import math
 
+from attention_tasks.montezuma.sentences import position_problem
 from feedback_node.human_input import (
-    excerpt, feedback_problem, MAX_UTTERANCE_CHARS, position_problem, utterance_problem)
+    excerpt, feedback_problem, MAX_UTTERANCE_CHARS, utterance_problem)
 import pytest
 
 

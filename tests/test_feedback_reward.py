@@ -4,7 +4,7 @@ import math
 
 from attention_tasks.montezuma.critical_positions import (
     critical_position_at, CRITICAL_POSITIONS, DEFAULT_RADIUS, nearest_critical_position)
-from feedback_node.reward import RewardConfig, RewardFunction, threshold_reward
+from attention_tasks.montezuma.reward import RewardConfig, RewardFunction, threshold_reward
 from feedback_node.trainer import TrainerConfig
 import pytest
 

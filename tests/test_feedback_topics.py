@@ -17,8 +17,8 @@ from attention_common.stamps import frames_to_ns, NS_PER_S, ns_to_stamp, stamp_t
 from attention_tasks.montezuma.critical_positions import critical_position_at
 from attention_tasks.montezuma.env import RamState
 from attention_tasks.montezuma.expert import RoomOneExpert, skull_x_from_frame
+from attention_tasks.montezuma.reward import RewardFunction
 from diagnostic_msgs.msg import DiagnosticArray
-from feedback_node.reward import RewardFunction
 from feedback_node.utterances import UtteranceGenerator
 from geometry_msgs.msg import PointStamped, Vector3Stamped
 from harness import wait_until

@@ -5,9 +5,9 @@ from dataclasses import fields
 from attention_common.parameters import field_docs
 from attention_common.stamps import frames_to_ns, NS_PER_S
 from attention_tasks.montezuma.critical_positions import CRITICAL_POSITIONS
+from attention_tasks.montezuma.reward import RewardConfig, RewardFunction
 from feedback_node.config import FeedbackConfig
-from feedback_node.reward import RewardConfig, RewardFunction
-from feedback_node.teacher import TeacherConfig
+from feedback_node.judging import TeacherConfig
 from feedback_node.trainer import SyntheticTrainer, TrainerConfig
 import pytest
 

@@ -2,8 +2,8 @@
 
 from attention_common.stamps import frames_to_ns
 from attention_tasks.montezuma.critical_positions import CRITICAL_POSITIONS
-from feedback_node.utterances import (
-    IntervalSchedule, sentence_for, SENTENCES, StuckDetector, UtteranceGenerator)
+from attention_tasks.montezuma.sentences import sentence_for, SENTENCES
+from feedback_node.utterances import IntervalSchedule, StuckDetector, UtteranceGenerator
 import pytest
 
 FIGURE_5_1 = [

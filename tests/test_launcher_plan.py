@@ -17,7 +17,7 @@ from attention_bringup.progress import (
 from attention_bringup.report import ProgressWriter, read_rows_for_plot
 from attention_common.run_files import node_log, of_session, OVERRIDES_FILE
 from attention_tasks.montezuma.critical_positions import CRITICAL_POSITIONS, DEFAULT_RADIUS
-from feedback_node.teacher import TRAINERS
+from feedback_node.judging import TRAINERS
 import pytest
 from saliency_node.saliency import BLUR_RADIUS
 from tamer_node.config import TamerConfig

@@ -1,18 +1,29 @@
 """
-The teacher (feedback_node.teacher): judges actions against the expert's, on real game states.
+Room 1's teacher: judges actions against the expert's, on real game states.
+
+The one teacher (feedback_node.task_teacher) with Room 1's knowledge
+(attention_tasks.montezuma.teaching).
 
 The judging is checked twice: with hand-made steps (attribution, silence, the human-like knobs,
 the utterances), and with the real emulator, where an agent that plays the expert is always
 right and one that plays at random is mostly wrong.
 """
 
+import ast
+from pathlib import Path
+
 from attention_common.joy_actions import ACTION_MEANINGS, NUM_ACTIONS
+from attention_tasks.montezuma.action_effects import EffectTable, place_of, Situation
 from attention_tasks.montezuma.env import EnvConfig, MontezumaEnv
 from attention_tasks.montezuma.expert import Phase, RoomOneExpert
-from feedback_node.action_effects import EffectTable, place_of, Situation
+from attention_tasks.montezuma.sentences import SENTENCES
+from attention_tasks.montezuma.teaching import RoomOneKnowledge, SeenStep, STAGE_SENTENCE
+from attention_tasks.task import task_names
+from feedback_node import task_teacher
+from feedback_node.config import FeedbackConfig
 from feedback_node.human_like import HUMAN_LIKE_SETTING
-from feedback_node.teacher import SeenStep, STAGE_SENTENCE, Teacher, TeacherConfig
-from feedback_node.utterances import SENTENCES
+from feedback_node.judging import TeacherConfig
+from feedback_node.task_teacher import TaskStep, TaskTeacher
 import numpy as np
 import pytest
 
@@ -20,13 +31,24 @@ A = {name: index for index, name in enumerate(ACTION_MEANINGS)}
 NS = 66_666_667  # one agent step of simulation time (4 frames at 60 Hz)
 
 
+def room_one_teacher(config=None, table=None) -> TaskTeacher:
+    """Return the one teacher with Room 1's knowledge (the table: the shipped one)."""
+    return TaskTeacher(RoomOneKnowledge(table), NUM_ACTIONS, config)
+
+
 def seen(t, x, y, action, pose=8, episode=0, has_key=False, skull_x=40):
-    return SeenStep(stamp_ns=t * NS, x=x, y=y, has_key=has_key, pose=pose, skull_x=skull_x,
-                    action=action, episode=episode)
+    return TaskStep(t * NS, action, episode, -1, SeenStep(x, y, has_key, pose, skull_x, action))
+
+
+def game_step(step) -> TaskStep:
+    """Return a step of the real game as the teacher sees it."""
+    s = step.state
+    return TaskStep(step.sim_time_ns, step.action, step.episode, -1,
+                    SeenStep(s.x, s.y, s.has_key, s.pose, s.skull_x, step.action))
 
 
 def test_judges_the_action_taken_at_t_when_t_plus_1_is_seen():
-    teacher = Teacher(TeacherConfig(utterance_interval=-1.0))
+    teacher = room_one_teacher(TeacherConfig(utterance_interval=-1.0))
     # At the top of the middle ladder (77, 235) the expert climbs down.
     assert teacher.on_step(seen(0, 77, 235, action=-1)).feedback == []
     out = teacher.on_step(seen(1, 77, 231, action=A['DOWN'], pose=10))
@@ -53,7 +75,7 @@ def test_equivalent_actions_count_as_the_expert_s_on_the_floor_not_on_a_ladder()
 
 
 def test_silent_while_dying_in_the_air_after_the_key_and_across_a_reset():
-    teacher = Teacher(TeacherConfig(utterance_interval=-1.0))
+    teacher = room_one_teacher(TeacherConfig(utterance_interval=-1.0))
     teacher.on_step(seen(0, 100, 148, action=-1, pose=22))     # dying on the floor
     # Then in the air with the button held (it jumped): nothing it does changes the jump.
     assert teacher.on_step(seen(1, 97, 165, action=A['RIGHTFIRE'], pose=6)).feedback == []
@@ -68,7 +90,7 @@ def test_silent_while_dying_in_the_air_after_the_key_and_across_a_reset():
 
 
 def test_a_missed_step_is_not_judged_with_the_wrong_action():
-    teacher = Teacher(TeacherConfig(utterance_interval=-1.0))
+    teacher = room_one_teacher(TeacherConfig(utterance_interval=-1.0))
     teacher.on_step(seen(0, 77, 235, action=-1)._replace(agent_step=0))
     # Step 1's status never arrived: step 2 carries the action taken at 1, not at 0.
     out = teacher.on_step(seen(2, 77, 227, action=A['LEFT'], pose=10)._replace(agent_step=2))
@@ -78,7 +100,7 @@ def test_a_missed_step_is_not_judged_with_the_wrong_action():
 
 
 def test_stamps_that_go_back_start_the_teacher_over_and_re_sends_are_not_judged_twice():
-    teacher = Teacher(TeacherConfig(utterance_interval=-1.0))
+    teacher = room_one_teacher(TeacherConfig(utterance_interval=-1.0))
     teacher.on_step(seen(5, 77, 235, action=-1))
     assert len(teacher.on_step(seen(6, 77, 231, action=A['DOWN'], pose=10)).feedback) == 1
     assert teacher.on_step(seen(6, 77, 231, action=A['DOWN'], pose=10)).feedback == []
@@ -101,7 +123,7 @@ def walk(teacher, steps, seed=0):
 
 def test_the_human_like_setting_gives_a_third_late_and_some_wrong():
     knobs = vars(HUMAN_LIKE_SETTING)
-    teacher = Teacher(TeacherConfig(utterance_interval=-1.0, seed=3, **knobs))
+    teacher = room_one_teacher(TeacherConfig(utterance_interval=-1.0, seed=3, **knobs))
     assert teacher.config.delayed
     released = walk(teacher, 3000)
     judged = teacher.counts['judged']
@@ -114,8 +136,8 @@ def test_the_human_like_setting_gives_a_third_late_and_some_wrong():
 
 
 def test_delayed_feedback_is_released_between_0_3_and_1_5_s_after_it_was_seen():
-    teacher = Teacher(TeacherConfig(utterance_interval=-1.0, feedback_delay_min=0.3,
-                                    feedback_delay_max=1.5))
+    teacher = room_one_teacher(TeacherConfig(utterance_interval=-1.0, feedback_delay_min=0.3,
+                                             feedback_delay_max=1.5))
     teacher.on_step(seen(0, 77, 235, action=-1))
     lags = []
     for t in range(1, 400):
@@ -125,7 +147,7 @@ def test_delayed_feedback_is_released_between_0_3_and_1_5_s_after_it_was_seen():
 
 
 def test_speaks_the_sentence_of_the_stage_it_is_in_at_the_interval():
-    teacher = Teacher(TeacherConfig(utterance_interval=1.0))
+    teacher = room_one_teacher(TeacherConfig(utterance_interval=1.0))
     first = teacher.on_step(seen(0, 109, 205, action=-1, pose=4)).utterance  # on the rope
     assert first.text == SENTENCES[STAGE_SENTENCE[Phase.ON_ROPE]] == SENTENCES[1]
     quiet = [teacher.on_step(seen(t, 109, 205, action=0, pose=4)).utterance
@@ -148,14 +170,11 @@ def play(policy, seed, steps, teacher):
         expert.reset()
         for _ in range(steps):
             s = step.state
-            teacher.on_step(SeenStep(step.sim_time_ns, s.x, s.y, s.has_key, s.pose, s.skull_x,
-                                     step.action, step.episode))
+            teacher.on_step(game_step(step))
             action = policy(expert.act(s, s.skull_x))
             step = env.step(action)
             if step.done:
-                s = step.state
-                teacher.on_step(SeenStep(step.sim_time_ns, s.x, s.y, s.has_key, s.pose,
-                                         s.skull_x, step.action, step.episode))
+                teacher.on_step(game_step(step))
                 step = env.reset()
                 expert.reset()
     finally:
@@ -164,7 +183,7 @@ def play(policy, seed, steps, teacher):
 
 @pytest.mark.parametrize('seed', [31, 32])
 def test_an_agent_that_plays_the_expert_is_always_right(seed):
-    teacher = Teacher(TeacherConfig(utterance_interval=-1.0))
+    teacher = room_one_teacher(TeacherConfig(utterance_interval=-1.0))
     play(lambda expert_action: expert_action, seed, 300, teacher)
     counts = teacher.counts
     assert counts['after_key'] > 0  # the route was played to the key
@@ -173,8 +192,28 @@ def test_an_agent_that_plays_the_expert_is_always_right(seed):
 
 def test_an_agent_that_plays_at_random_is_mostly_wrong():
     rng = np.random.default_rng(5)
-    teacher = Teacher(TeacherConfig(utterance_interval=-1.0))
+    teacher = room_one_teacher(TeacherConfig(utterance_interval=-1.0))
     play(lambda expert_action: int(rng.integers(NUM_ACTIONS)), 33, 400, teacher)
     counts = teacher.counts
     assert counts['judged'] > 100
     assert counts['agreed'] / counts['judged'] < 0.35
+
+
+@pytest.mark.parametrize('task', task_names())
+def test_every_task_is_taught_by_the_one_teacher_from_its_own_knowledge(task):
+    teacher = FeedbackConfig(task=task, trainer='teacher').make_trainer()
+    assert isinstance(teacher, TaskTeacher)
+    assert type(teacher.knowledge).__module__ == f'attention_tasks.{task}.teaching'
+
+
+def test_the_teacher_names_no_task():
+    """feedback_node's teacher imports no task's module: a new task needs no edit of it."""
+    package = Path(task_teacher.__file__).parent
+    for name in ('task_teacher.py', 'judging.py', 'config.py', 'human_like.py'):
+        tree = ast.parse((package / name).read_text())
+        imported = [node.module for node in ast.walk(tree) if isinstance(node, ast.ImportFrom)]
+        imported += [alias.name for node in ast.walk(tree) if isinstance(node, ast.Import)
+                     for alias in node.names]
+        tasks = [m for m in imported if m.startswith('attention_tasks.')
+                 and m != 'attention_tasks.task']
+        assert tasks == [], (name, tasks)

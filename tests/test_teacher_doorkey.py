@@ -14,15 +14,14 @@ from attention_tasks.doorkey import teaching
 from attention_tasks.doorkey.env import DoorKeyEnv, DoorKeyEnvConfig, STEP_S
 from attention_tasks.doorkey.expert import (
     DROP, FORWARD, LEFT, next_action, PICKUP, RIGHT, TOGGLE)
-from attention_tasks.doorkey.language import progress
-from attention_tasks.doorkey.world import DistractorDoorKeyEnv, DoorKeyConfig, state_of
+from attention_tasks.doorkey.world import DistractorDoorKeyEnv, DoorKeyConfig, progress, state_of
+from attention_tasks.montezuma.teaching import RoomOneKnowledge
 from attention_tasks.task import Step
 from env_node.status import Counters, parse_status, status_values
 from feedback_node.config import FeedbackConfig
 from feedback_node.human_like import HUMAN_LIKE_SETTING
 from feedback_node.judging import TeacherConfig
 from feedback_node.task_teacher import load_knowledge, TaskTeacher, UnknownTeacher
-from feedback_node.teacher import Teacher
 from feedback_node.trainer import SyntheticTrainer
 import numpy as np
 import pytest
@@ -345,7 +344,10 @@ def test_a_grid_without_a_door_or_walls_is_refused():
 
 def test_the_task_chooses_the_trainer():
     assert isinstance(FeedbackConfig().make_trainer(), SyntheticTrainer)
-    assert isinstance(FeedbackConfig(trainer='teacher').make_trainer(), Teacher)
+    room_one = FeedbackConfig(trainer='teacher').make_trainer()
+    assert isinstance(room_one, TaskTeacher) and isinstance(room_one.knowledge, RoomOneKnowledge)
+    assert room_one.knowledge is not FeedbackConfig(trainer='teacher').make_trainer().knowledge
+    assert room_one.SILENT == ('cannot_matter', 'after_key')  # an expert each, counted apart
     doorkey = FeedbackConfig(task='doorkey', trainer='teacher').make_trainer()
     assert isinstance(doorkey, TaskTeacher) and doorkey.knowledge is teaching.KNOWLEDGE
     assert doorkey.num_actions == 6
@@ -353,5 +355,5 @@ def test_the_task_chooses_the_trainer():
         FeedbackConfig(task='doorkey')
     with pytest.raises(ValueError, match='installed tasks: doorkey, montezuma'):
         FeedbackConfig(task='sokoban', trainer='teacher')
-    with pytest.raises(UnknownTeacher, match='attention_tasks.montezuma.teaching'):
-        load_knowledge('montezuma')
+    with pytest.raises(UnknownTeacher, match='attention_tasks.sokoban.teaching'):
+        load_knowledge('sokoban')

@@ -16,7 +16,7 @@ from attention_common import qos, topics
 from attention_common.stamps import ns_to_stamp, stamp_to_ns
 from attention_tasks.doorkey.env import DoorKeyEnv, DoorKeyEnvConfig
 from attention_tasks.doorkey.expert import next_action
-from attention_tasks.doorkey.language import progress
+from attention_tasks.doorkey.world import progress
 from attention_tasks.doorkey.world import state_of
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from env_node.status import Counters, STATUS_NAME, status_values

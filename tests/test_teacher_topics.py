@@ -14,11 +14,11 @@ import time
 from attention_common import qos, topics
 from attention_common.joy_actions import action_to_joy, NUM_ACTIONS
 from attention_common.stamps import ns_to_stamp, stamp_to_ns
+from attention_tasks.montezuma.action_effects import EffectTable, place_of, Situation
 from attention_tasks.montezuma.expert import FIRE_ACTIONS, RoomOneExpert
+from attention_tasks.montezuma.teaching import SeenStep
 from diagnostic_msgs.msg import DiagnosticArray
 from env_node.status import parse_status
-from feedback_node.action_effects import EffectTable, place_of, Situation
-from feedback_node.teacher import SeenStep
 from geometry_msgs.msg import Vector3Stamped
 from harness import wait_until
 import pytest
@@ -66,8 +66,7 @@ class Player:
             stamp_ns = min(stamp_to_ns(m.header.stamp) for m in self.observations.snapshot()
                            if stamp_to_ns(m.header.stamp) > last)
             v = self._status(stamp_ns)
-            seen = SeenStep(stamp_ns, v['x'], v['y'], v['has_key'], v['pose'], v['skull_x'],
-                            v['action'], v['episode'], v['agent_step'])
+            seen = SeenStep(v['x'], v['y'], v['has_key'], v['pose'], v['skull_x'], v['action'])
             previous = v['action'] if v['action'] >= 0 else None
             expert_action = self.expert.act(seen, seen.skull_x, previous_action=previous)
             action, wrong = expert_action, False

@@ -6,7 +6,8 @@ setup(
     name=package_name,
     version='0.1.0',
     packages=find_packages(exclude=['test']),
-    package_data={package_name: ['doorkey/templates/manifest.yaml', 'doorkey/templates/*.png']},
+    package_data={package_name: ['doorkey/templates/manifest.yaml', 'doorkey/templates/*.png',
+                                 'montezuma/data/action_effects.json']},
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
@@ -21,6 +22,7 @@ setup(
     entry_points={
         'console_scripts': [
             'doorkey_make_templates = attention_tasks.doorkey.make_templates:main',
+            'teacher_effects = attention_tasks.montezuma.measure_effects:main',
         ],
     },
 )

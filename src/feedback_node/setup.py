@@ -6,7 +6,6 @@ setup(
     name=package_name,
     version='0.1.0',
     packages=find_packages(exclude=['test']),
-    package_data={package_name: ['data/action_effects.json']},
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
@@ -21,7 +20,6 @@ setup(
     entry_points={
         'console_scripts': [
             'feedback_node = feedback_node.node:main',
-            'teacher_effects = feedback_node.measure_effects:main',
         ],
     },
 )

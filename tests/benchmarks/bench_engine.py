@@ -67,7 +67,7 @@ def main(argv=None) -> int:
           f'one at a time, in {wall:.1f} s')
     print(f'engine per trial: {1e3 * beyond:.0f} ms of wall time beyond the trial '
           f'({100 * beyond / TRIAL_OF_THE_GRAPH_S:.2f} % of a 10,000-step trial of the graph), '
-          f'{1e3 * driver_cpu / trials:.0f} ms of the driver\'s CPU '
+          f"{1e3 * driver_cpu / trials:.0f} ms of the driver's CPU "
           f'({100 * driver_cpu / trials / TRIAL_OF_THE_GRAPH_S:.2f} %)')
     return code
 

@@ -43,10 +43,13 @@ def parse_value(text: str):
 def run_trial(seed: int, steps: int, human_like: bool, overrides: dict, pace: float,
               workdir: Path, table: str = '', knobs: dict = None,
               stamped_late: bool = False) -> dict:
+    from attention_common.joy_actions import NUM_ACTIONS
+    from attention_tasks.montezuma.action_effects import EffectTable, STRICT
     from attention_tasks.montezuma.env import EnvConfig, MontezumaEnv
-    from feedback_node.action_effects import EffectTable, STRICT
+    from attention_tasks.montezuma.teaching import RoomOneKnowledge, SeenStep
     from feedback_node.human_like import HUMAN_LIKE_SETTING
-    from feedback_node.teacher import SeenStep, Teacher, TeacherConfig
+    from feedback_node.judging import TeacherConfig
+    from feedback_node.task_teacher import TaskStep, TaskTeacher
     from tamer_node.agent import share_the_cpu, TamerAgent
     from tamer_node.config import TamerConfig
 
@@ -56,7 +59,8 @@ def run_trial(seed: int, steps: int, human_like: bool, overrides: dict, pace: fl
         effects = EffectTable({'': STRICT}, {}, ())
     else:
         effects = EffectTable.load(Path(table)) if table else None
-    teacher = Teacher(TeacherConfig(utterance_interval=-1.0, seed=seed, **knobs), effects)
+    teacher = TaskTeacher(RoomOneKnowledge(effects), NUM_ACTIONS,
+                          TeacherConfig(utterance_interval=-1.0, seed=seed, **knobs))
     from attention_bringup.plan import HUMAN_LIKE_WINDOW_S
     late = teacher.config.delayed and not stamped_late
     config = {'seed': seed, 'alpha': 0.0, 'credit': 'window' if late else 'step'}
@@ -71,8 +75,10 @@ def run_trial(seed: int, steps: int, human_like: bool, overrides: dict, pace: fl
 
     def see(step):
         s = step.state
-        out = teacher.on_step(SeenStep(step.sim_time_ns, s.x, s.y, s.has_key, s.pose,
-                                       s.skull_x, step.action, step.episode, step.agent_step))
+        out = teacher.on_step(TaskStep(step.sim_time_ns, step.action, step.episode,
+                                       step.agent_step,
+                                       SeenStep(s.x, s.y, s.has_key, s.pose, s.skull_x,
+                                                step.action)))
         return out.feedback
 
     from tamer_node.credit import spans_from_stamps, window_credit
@@ -121,15 +127,15 @@ def run_trial(seed: int, steps: int, human_like: bool, overrides: dict, pace: fl
             first_key = first_key or t
         had_key = ended.state.has_key and not ended.done
         lives_lost += int(ended.life_lost)
-        if teacher.expert.phase in route:
-            furthest = max(furthest, route.index(teacher.expert.phase))
+        if teacher.knowledge.expert.phase in route:
+            furthest = max(furthest, route.index(teacher.knowledge.expert.phase))
         counts = teacher.counts
         if t % 500 == 0:
             judged, agreed = counts['judged'] - window[0], counts['agreed'] - window[1]
             window = [counts['judged'], counts['agreed']]
             curve.append({'step': t, 'agreement': agreed / max(judged, 1), 'keys': keys,
                           'x': step.state.x, 'y': step.state.y,
-                          'phase': teacher.expert.phase.name})
+                          'phase': teacher.knowledge.expert.phase.name})
         if pace > 0:
             delay = started + t / pace - time.monotonic()
             if delay > 0:

@@ -22,7 +22,7 @@ from attention_tasks.montezuma.critical_positions import DEFAULT_RADIUS
 from attention_tasks.montezuma.task import REALTIME_RATE_HZ  # noqa: F401 (Room 1's, for tests)
 from attention_tasks.task import DEFAULT_TASK, load_task, task_names
 from feedback_node.human_like import HUMAN_LIKE_SETTING
-from feedback_node.teacher import TRAINERS
+from feedback_node.judging import TRAINERS
 
 DEFAULT_STEPS = 10000
 """Agent steps of a default run (the thesis's trial): about 4 minutes on 2 busy CPU cores."""

@@ -4,9 +4,8 @@ from dataclasses import dataclass, fields
 from typing import Union
 
 from attention_tasks.task import DEFAULT_TASK, load_task
-from feedback_node.judging import TeacherConfig
+from feedback_node.judging import TeacherConfig, TRAINERS
 from feedback_node.task_teacher import load_knowledge, TaskTeacher
-from feedback_node.teacher import Teacher, TRAINERS
 from feedback_node.trainer import SyntheticTrainer, TrainerConfig
 
 RUNTIME_PARAMETERS = ('synthetic',)
@@ -60,11 +59,11 @@ class FeedbackConfig(TrainerConfig):
         if self.trainer not in TRAINERS:
             raise ValueError(f'trainer must be one of {TRAINERS}, got {self.trainer!r}')
         load_task(self.task)  # UnknownTask (a ValueError) names the installed tasks
-        if self.task != DEFAULT_TASK:
-            if self.trainer == 'thesis':
-                raise ValueError(
-                    f"trainer 'thesis' measures Room 1's critical positions: it teaches only "
-                    f'task {DEFAULT_TASK}; task {self.task!r} needs trainer:=teacher')
+        if self.task != DEFAULT_TASK and self.trainer == 'thesis':
+            raise ValueError(
+                f"trainer 'thesis' measures Room 1's critical positions: it teaches only "
+                f'task {DEFAULT_TASK}; task {self.task!r} needs trainer:=teacher')
+        if self.trainer == 'teacher':
             load_knowledge(self.task)  # UnknownTeacher (a ValueError): no teaching module
         self.trainer_config()
 
@@ -73,11 +72,9 @@ class FeedbackConfig(TrainerConfig):
         cls = TeacherConfig if self.trainer == 'teacher' else TrainerConfig
         return cls(**{f.name: getattr(self, f.name) for f in fields(cls)})
 
-    def make_trainer(self) -> Union[Teacher, TaskTeacher, SyntheticTrainer]:
-        """Build the chosen trainer: the thesis's, Room 1's teacher, or the task's teacher."""
+    def make_trainer(self) -> Union[TaskTeacher, SyntheticTrainer]:
+        """Build the chosen trainer: the thesis's, or the teacher with the task's knowledge."""
         config = self.trainer_config()
         if self.trainer == 'thesis':
             return SyntheticTrainer(config)
-        if self.task == DEFAULT_TASK:
-            return Teacher(config)
         return TaskTeacher(load_knowledge(self.task), load_task(self.task).num_actions, config)

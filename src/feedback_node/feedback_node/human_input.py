@@ -36,19 +36,6 @@ def utterance_problem(text: str) -> Optional[str]:
     return None
 
 
-RAM_COORDINATE_MAX = 255
-"""x and y of ``agent_position`` are RAM bytes: 0..255 is the game's whole range."""
-
-
-def position_problem(x: float, y: float) -> Optional[str]:
-    """Why (x, y) is not a position the game can report, or None."""
-    if not (math.isfinite(x) and math.isfinite(y)):
-        return f'x={x}, y={y} is not finite'
-    if not (0.0 <= x <= RAM_COORDINATE_MAX and 0.0 <= y <= RAM_COORDINATE_MAX):
-        return f"x={x:g}, y={y:g} is outside the game's range 0..{RAM_COORDINATE_MAX}"
-    return None
-
-
 def feedback_problem(value: float) -> Optional[str]:
     """Why ``value`` is not a usable feedback h, or None (h is expected in [-1, 1])."""
     if not math.isfinite(value):

@@ -13,8 +13,8 @@ same in every task, so it lives here once (``ActionTeacher``):
   an interval of simulation time (``utterances.IntervalSchedule``).
 
 What a teacher thinks of a step, whether and how it judges, and what it says are its own
-(``_decide``, ``_judge``, ``_speak``): Room 1's ``teacher.Teacher``, any other task's
-``task_teacher.TaskTeacher``. Pure (no rclpy).
+(``_decide``, ``_judge``, ``_speak``): ``task_teacher.TaskTeacher`` asks the task's knowledge.
+Pure (no rclpy).
 """
 
 from dataclasses import dataclass
@@ -22,6 +22,10 @@ from typing import Any, List, NamedTuple, Optional, Tuple
 
 from feedback_node.human_like import FeedbackScheduler, HumanLike
 from feedback_node.utterances import IntervalSchedule, Utterance
+
+
+TRAINERS = ('teacher', 'thesis')
+"""feedback_node ``trainer``: the teacher (``task_teacher``), or the thesis's (``trainer.py``)."""
 
 
 @dataclass

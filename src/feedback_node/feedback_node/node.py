@@ -3,8 +3,8 @@ feedback_node: a synthetic trainer over topics, or a listener when a person trai
 
 ``trainer`` chooses which: ``thesis`` (equations 4.1/4.2 on the agent's position, every study
 condition; Room 1 only) or ``teacher`` (judges each action against the expert's, from
-``env_status``: ``feedback_node.teacher`` for ``task`` montezuma, ``feedback_node.task_teacher``
-with ``attention_tasks.<task>.teaching`` for any other).
+``env_status``: ``feedback_node.task_teacher`` with ``attention_tasks.<task>.teaching``, for every
+task).
 
 Subscribes ``agent_position``. With ``synthetic`` true, for every position (step T') it
 publishes the feedback judging the action of the previous step T (``feedback_stamped``, stamp
@@ -23,12 +23,12 @@ from attention_common import qos, topics
 from attention_common.node_main import run_node, StartupError
 from attention_common.parameters import declare_dataclass
 from attention_common.stamps import NS_PER_S, ns_to_stamp, stamp_to_ns
+from attention_tasks.montezuma.sentences import position_problem
 from attention_tasks.task import DEFAULT_TASK
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from env_node.status import parse_status, STATUS_NAME
 from feedback_node.config import FeedbackConfig, RUNTIME_PARAMETERS
-from feedback_node.human_input import (
-    excerpt, feedback_problem, position_problem, utterance_problem)
+from feedback_node.human_input import excerpt, feedback_problem, utterance_problem
 from feedback_node.utterances import Utterance
 from geometry_msgs.msg import PointStamped, Vector3Stamped
 from rcl_interfaces.msg import SetParametersResult

@@ -1,17 +1,19 @@
 """
-The teacher of any task but Room 1: the shared frame, with the task's knowledge plugged in.
+The teacher of every task: the shared frame, with the task's knowledge plugged in.
 
 A task teaches by one module, ``attention_tasks.<task>.teaching``, whose ``KNOWLEDGE`` answers
-the four questions of ``TeacherKnowledge`` from a step's ``env_status`` values; this teacher
-asks them (no task name, no game keys here). For step T it keeps the expert's action; when T'
-(the next agent step, same episode) shows the action taken, it gives +1 if that action is as
-good as the expert's and -1 otherwise, stamped T; nothing where the expert has no action (at
-the goal, no way). Re-sends, restarts, resets, missed steps and the human-like knobs are
-``judging.ActionTeacher``'s, as for Room 1.
+the questions of ``TeacherKnowledge`` from a step's ``env_status`` values; this teacher asks
+them (no task name, no game keys here), so a new task needs no edit of this node. For step T it
+keeps the expert's action; when T' (the next agent step, same episode) shows the action taken,
+it gives +1 if that action is as good as the expert's and -1 otherwise, stamped T; nothing
+where the knowledge says it is silent (no expert action: at the goal, no way; in Room 1 also
+an action that cannot matter, or after the key). Re-sends, restarts, resets, missed steps and
+the human-like knobs are ``judging.ActionTeacher``'s.
 
-Every ``utterance_interval`` seconds of simulation time it says the knowledge's sentence
-(``position`` -1, ``sentence_of`` its index). A new episode is a new layout: its first step
-speaks at once; where the knowledge has nothing to say (after the goal) it is silent.
+Every ``utterance_interval`` seconds of simulation time it says the knowledge's sentence (its
+``position``, -1 where the task has none, and ``sentence_of`` its index); where the knowledge
+has nothing to say it is silent. A task whose new episode is a new layout
+(``SPEAKS_AT_NEW_EPISODE``) speaks at its first step at once.
 """
 
 import importlib
@@ -26,13 +28,23 @@ NO_POSITION = -1
 
 
 class TeacherKnowledge(Protocol):
-    """What a task's teacher knows, asked of each step (``attention_tasks.<task>.teaching``)."""
+    """
+    What a task's teacher knows, asked of each step (``attention_tasks.<task>.teaching``).
+
+    Besides the methods below a knowledge has ``SILENT`` (the reasons ``silent`` gives, counted)
+    and ``SPEAKS_AT_NEW_EPISODE``; it may have ``fresh()`` (a knowledge with state of its own
+    for one teacher), ``reset()`` (a new trial), ``new_episode()`` and ``position(state)``
+    (the utterance's ``position``; -1 without it).
+    """
 
     def observe(self, values: Mapping[str, object]) -> Hashable:
         """Return the task's state of a step's parsed env_status; KeyError, ValueError: bad."""
 
     def expert_action(self, state: Any) -> Optional[int]:
         """Return the expert's task action in ``state``; None: nothing to judge there."""
+
+    def silent(self, state: Any, expert_action: Optional[int]) -> Optional[str]:
+        """Return why the action taken in ``state`` is not judged (one of ``SILENT``), or None."""
 
     def as_good(self, state: Any, action: int, expert_action: int) -> bool:
         """Tell whether ``action`` taken in ``state`` is as good as ``expert_action``."""
@@ -73,13 +85,18 @@ class TaskStep(NamedTuple):
 class TaskTeacher(ActionTeacher):
     """Judges each action by the task's knowledge; says the task's sentences."""
 
-    SILENT = ('no_expert_action',)
-
     def __init__(self, knowledge: TeacherKnowledge, num_actions: int,
                  config: Optional[TeacherConfig] = None):
-        self.knowledge = knowledge
+        self.knowledge = knowledge.fresh() if hasattr(knowledge, 'fresh') else knowledge
         self.num_actions = num_actions
+        self.SILENT = tuple(knowledge.SILENT)
         super().__init__(config)
+
+    def reset(self) -> None:
+        """Forget the trial so far (pending delayed feedback and the knowledge's too)."""
+        super().reset()
+        if hasattr(self.knowledge, 'reset'):
+            self.knowledge.reset()
 
     def see(self, stamp_ns: int, values: Mapping[str, object]) -> TaskStep:
         """Read step ``values`` (parsed env_status); KeyError, ValueError when they are bad."""
@@ -91,12 +108,16 @@ class TaskTeacher(ActionTeacher):
 
     def _decide(self, seen: TaskStep, new_episode: bool) -> Optional[int]:
         if new_episode:
-            self.schedule.reset()  # a new layout: name its objects at once
+            if hasattr(self.knowledge, 'new_episode'):
+                self.knowledge.new_episode()
+            if self.knowledge.SPEAKS_AT_NEW_EPISODE:
+                self.schedule.reset()  # a new layout: name its objects at once
         return self.knowledge.expert_action(seen.state)
 
     def _judge(self, last: TaskStep, expert_action: Optional[int], seen: TaskStep) -> None:
-        if expert_action is None:
-            self._counts['no_expert_action'] += 1
+        reason = self.knowledge.silent(last.state, expert_action)
+        if reason is not None:
+            self._counts[reason] += 1
             return
         same = self.knowledge.as_good(last.state, seen.action, expert_action)
         self._give(last, seen, expert_action, same)
@@ -107,5 +128,6 @@ class TaskTeacher(ActionTeacher):
             return None
         self.schedule.spoken(seen.stamp_ns)
         sentence_of, text = said
-        return Utterance(text=text, position=NO_POSITION, sentence_of=sentence_of,
+        position = getattr(self.knowledge, 'position', lambda state: NO_POSITION)(seen.state)
+        return Utterance(text=text, position=position, sentence_of=sentence_of,
                          stamp_ns=seen.stamp_ns)

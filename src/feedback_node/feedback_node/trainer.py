@@ -19,9 +19,9 @@ consequence is seen; the feedback keeps the stamp of the step it judges), and so
 from dataclasses import dataclass, fields
 from typing import List, NamedTuple, Optional
 
+from attention_tasks.montezuma.reward import RewardConfig, RewardFunction
 from feedback_node.human_like import FeedbackScheduler
 from feedback_node.judging import TeacherConfig
-from feedback_node.reward import RewardConfig, RewardFunction
 from feedback_node.utterances import Utterance, UtteranceGenerator
 
 

@@ -1,13 +1,8 @@
 """
-The synthetic trainer's words: Figure 5.1 of the thesis, an interval, and the stuck rule.
+What a trainer says, and when: an utterance, an interval, and the thesis's stuck rule.
 
-- ``SENTENCES`` is Figure 5.1: one sentence per critical position 0..5, and the thesis's
-  sentence for -1 (everywhere else).
-- In between (-1) the thesis speaks "toward the nearest critical position" (section 5). The
-  generator therefore says the sentence of the nearest position, so that what is said names the
-  things near the agent (the template matcher looks for them). The literal -1 sentence ("Go back
-  to the top of the ladder and jump onto the rope.") is kept in ``SENTENCES[-1]`` and is said
-  with ``in_between='literal'``.
+- The thesis's trainer says Figure 5.1's sentence of where the agent is (Room 1's words:
+  ``attention_tasks.montezuma.sentences``; in between, the nearest position's).
 - One utterance per interval of simulation time (default 10 s, what the thesis settled on);
   0 speaks at every step (Figure 5.4), a negative interval never speaks.
 - The stuck rule: a buffer of the agent's recent positions; while all of them are the same the
@@ -19,21 +14,8 @@ import collections
 from typing import Deque, NamedTuple, Optional, Tuple
 
 from attention_common.stamps import NS_PER_S
-from attention_tasks.montezuma.critical_positions import (
-    critical_position_at, DEFAULT_RADIUS, nearest_critical_position, OUTSIDE)
-
-SENTENCES = {
-    -1: 'Go back to the top of the ladder and jump onto the rope.',
-    0: 'Jump right from the ladder onto the rope.',
-    1: 'Jump right from the rope onto the lower platform.',
-    2: 'Climb down the ladder onto the ground.',
-    3: 'Move left and avoid the skull.',
-    4: 'Climb up the ladder.',
-    5: 'Jump up to get the key.',
-}
-"""Figure 5.1: the sentence for each current position (-1 = in between)."""
-
-IN_BETWEEN_MODES = ('nearest', 'literal')
+from attention_tasks.montezuma.critical_positions import DEFAULT_RADIUS
+from attention_tasks.montezuma.sentences import IN_BETWEEN_MODES, sentence_for
 
 
 class Utterance(NamedTuple):
@@ -46,18 +28,6 @@ class Utterance(NamedTuple):
     """Whose Figure 5.1 sentence was said (the nearest position when in between)."""
     stamp_ns: int
     """The step at which it is said."""
-
-
-def sentence_for(x: float, y: float, radius: float = DEFAULT_RADIUS,
-                 in_between: str = 'nearest') -> Tuple[int, int, str]:
-    """Return ``(position, sentence_of, text)`` for an agent at (x, y)."""
-    position = critical_position_at(x, y, radius)
-    if position != OUTSIDE:
-        return position, position, SENTENCES[position]
-    if in_between == 'literal':
-        return OUTSIDE, OUTSIDE, SENTENCES[OUTSIDE]
-    nearest, _ = nearest_critical_position(x, y)
-    return OUTSIDE, nearest, SENTENCES[nearest]
 
 
 class IntervalSchedule:

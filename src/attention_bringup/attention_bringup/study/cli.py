@@ -23,7 +23,7 @@ from typing import List, Optional, Sequence
 from attention_bringup.experiment import engine, runner, spec as specs
 from attention_bringup.graph import CONDITIONS
 from attention_bringup.plan import positive_int
-from feedback_node.teacher import TRAINERS
+from feedback_node.judging import TRAINERS
 
 SPEC = specs.load('thesis')
 DEFAULT_TRIALS = len(SPEC.seeds)

@@ -9,10 +9,11 @@ the numbers: "significant" means Welch p < 0.05 (unadjusted; Holm-adjusted p is 
 
 from typing import List, Mapping, Optional
 
+from attention_bringup.experiment.markdown import num
 from attention_bringup.experiment.trials import POSITIONS
 from attention_bringup.study.analysis import BASELINE, SETTLED_SHARE, TESTED_POSITIONS
 from attention_tasks.montezuma.critical_positions import DEFAULT_RADIUS
-from feedback_node.reward import RewardConfig
+from attention_tasks.montezuma.reward import RewardConfig
 
 ALPHA = 0.05
 
@@ -24,21 +25,11 @@ MEASURE_TEXT = {
 }
 
 
-def fmt_p(p: Optional[float]) -> str:
-    if p is None:
-        return 'n/a'
-    return '< 0.001' if p < 0.001 else f'{p:.3f}'
-
-
 def p_text(p: Optional[float], name: str = 'p') -> str:
     """Return 'p = 0.123', 'p < 0.001' or 'p n/a'."""
     if p is None:
         return f'{name} n/a'
     return f'{name} < 0.001' if p < 0.001 else f'{name} = {p:.3f}'
-
-
-def _num(value: Optional[float], digits: int = 2) -> str:
-    return 'n/a' if value is None else f'{value:.{digits}f}'
 
 
 def _tests_of(analysis: Mapping, condition: str) -> List[dict]:
@@ -69,9 +60,9 @@ def _describe_test(test: Mapping) -> str:
         holm = test.get('p_holm')
         survives = '' if holm is None or holm < ALPHA else ', not significant after Holm'
         detail = (f'{p_text(test["p"])}, {p_text(holm, "Holm p")}{survives}, '
-                  f'g = {_num(test["hedges_g"], 2)}')
+                  f'g = {num(test["hedges_g"], 2)}')
     return (f'{MEASURE_TEXT[test["measure"]]}: {test["condition"]} '
-            f'{_num(test["mean_a"], 2)} vs vanilla {_num(test["mean_b"], 2)} ({better}; '
+            f'{num(test["mean_a"], 2)} vs vanilla {num(test["mean_b"], 2)} ({better}; '
             f'{detail})')
 
 

@@ -10,10 +10,11 @@ from pathlib import Path
 from typing import Mapping, Optional, Sequence
 
 from attention_bringup.experiment import stats
+from attention_bringup.experiment.markdown import (
+    mean_interval, minutes_seconds, num, p_value, table_text)
 from attention_bringup.experiment.trials import PLACES, POSITIONS
 from attention_bringup.study import discussion
 from attention_bringup.study.analysis import BASELINE, MEASURES, SETTLED_SHARE
-from attention_bringup.study.discussion import _num, fmt_p
 from attention_tasks.montezuma.critical_positions import DEFAULT_RADIUS
 
 CONDITION_TEXT = {
@@ -41,15 +42,6 @@ FIGURE_CAPTIONS = {
 }
 
 
-def _mean_ci(estimate: Mapping, digits: int = 2) -> str:
-    if estimate['mean'] is None:
-        return 'n/a'
-    if estimate['low'] is None:
-        return f'{estimate["mean"]:.{digits}f}'
-    return (f'{estimate["mean"]:.{digits}f} [{estimate["low"]:.{digits}f}, '
-            f'{estimate["high"]:.{digits}f}]')
-
-
 def _mean_sd(estimate: Mapping, digits: int = 1) -> str:
     if estimate['mean'] is None:
         return 'n/a'
@@ -62,18 +54,6 @@ def _proportion(proportion: Mapping) -> str:
         return 'n/a'
     return (f'{proportion["k"]}/{proportion["n"]} '
             f'({100 * proportion["low"]:.0f}–{100 * proportion["high"]:.0f} %)')
-
-
-def _duration(seconds: float) -> str:
-    seconds = int(round(seconds))
-    hours, rest = divmod(seconds, 3600)
-    return f'{hours} h {rest // 60:02d} min' if hours else f'{rest // 60} min {rest % 60:02d} s'
-
-
-def _table(header: Sequence[str], rows: Sequence[Sequence[str]]) -> str:
-    lines = ['| ' + ' | '.join(header) + ' |', '|' + '---|' * len(header)]
-    lines += ['| ' + ' | '.join(str(cell) for cell in row) + ' |' for row in rows]
-    return '\n'.join(lines)
 
 
 def status_lines(analysis: Mapping, protocol: Mapping) -> str:
@@ -117,7 +97,7 @@ def protocol_section(protocol: Mapping, analysis: Mapping) -> str:
         'listed below; it is never dropped silently. Only trials whose whole budget was '
         'recorded enter the statistics.',
         '',
-        _table(('condition', 'what changes'), rows),
+        table_text(('condition', 'what changes'), rows),
         '',
         '### Measures and statistics',
         '',
@@ -176,8 +156,8 @@ def where_table(analysis: Mapping, present: Sequence[str]) -> str:
         'counts (older files lack them: `--refresh-records` rebuilds them from their run '
         'folders).',
         '',
-        _table(('condition', 'n', 'none') + tuple(f'pos {p}' for p in POSITIONS)
-               + ('mean h', 'settled'), rows),
+        table_text(('condition', 'n', 'none') + tuple(f'pos {p}' for p in POSITIONS)
+                   + ('mean h', 'settled'), rows),
     ])
 
 
@@ -189,7 +169,7 @@ def results_tables(analysis: Mapping, conditions: Sequence[str]) -> str:
         problems = ', '.join(f'{k} {v}' for k, v in sorted(s['outcomes'].items())
                              if k != 'completed') or 'none'
         overview.append((f'`{c}`', f'{s["usable"]}/{s["trials"]}', problems,
-                         _mean_ci(s['furthest_position']), _proportion(s['key']),
+                         mean_interval(s['furthest_position']), _proportion(s['key']),
                          _mean_sd(s['episodes']), _mean_sd(s['lives_lost']),
                          _mean_sd(s['updates_per_step'], 2), _mean_sd(s['wall_time_s'], 0)))
     reach = [(f'`{c}`',) + tuple(_proportion(analysis['conditions'][c]['steps_to'][str(p)]
@@ -213,22 +193,22 @@ def results_tables(analysis: Mapping, conditions: Sequence[str]) -> str:
         '',
         '### Per condition',
         '',
-        _table(('condition', 'full trials / files', 'problems', 'furthest position, mean '
-                '[95 % CI]', 'key rate (95 % CI)', 'episodes, mean ± sd',
-                'lives used, mean ± sd', 'learner updates / step', 'wall s / trial'),
-               overview),
+        table_text(('condition', 'full trials / files', 'problems', 'furthest position, mean '
+                    '[95 % CI]', 'key rate (95 % CI)', 'episodes, mean ± sd',
+                    'lives used, mean ± sd', 'learner updates / step', 'wall s / trial'),
+                   overview),
         '',
         '### Reach rate per critical position (by the end of the budget; Wilson 95 % CI)',
         '',
-        _table(('condition',) + tuple(f'pos {p}' for p in POSITIONS), reach),
+        table_text(('condition',) + tuple(f'pos {p}' for p in POSITIONS), reach),
         '',
         '### Steps to each position, trials that reached it: mean (median) [n]',
         '',
-        _table(('condition',) + tuple(f'pos {p}' for p in POSITIONS), steps),
+        table_text(('condition',) + tuple(f'pos {p}' for p in POSITIONS), steps),
         '',
         '### Furthest position reached: number of trials (-1: none)',
         '',
-        _table(('condition',) + tuple(str(p) for p in PLACES), furthest),
+        table_text(('condition',) + tuple(str(p) for p in PLACES), furthest),
         '',
         where_table(analysis, present),
     ])
@@ -241,17 +221,17 @@ def tests_table(analysis: Mapping) -> str:
     for t in analysis['tests']:
         measure = t['measure'].replace('_', ' ')
         rows.append((f'`{t["condition"]}`', measure, f'{t["n_a"]} / {t["n_b"]}',
-                     _num(t['mean_a']), _num(t['mean_b']), _num(t['difference']),
-                     _num(t['t']), _num(t['df'], 1), fmt_p(t['p']), fmt_p(t.get('p_holm')),
-                     _num(t['hedges_g']), t['note'] or ''))
+                     num(t['mean_a']), num(t['mean_b']), num(t['difference']),
+                     num(t['t']), num(t['df'], 1), p_value(t['p']), p_value(t.get('p_holm')),
+                     num(t['hedges_g']), t['note'] or ''))
     return '\n'.join([
         '## Tests against vanilla (Welch, two-sided)',
         '',
         f'Measures: {", ".join(m.replace("_", " ") for m in MEASURES)}. Steps: unreached = '
         'budget + 1. For steps, a negative difference (and g) means faster than vanilla.',
         '',
-        _table(('condition', 'measure', 'n (cond / vanilla)', 'mean cond', 'mean vanilla',
-                'difference', 't', 'df', 'p', 'p (Holm)', 'Hedges g', 'note'), rows),
+        table_text(('condition', 'measure', 'n (cond / vanilla)', 'mean cond', 'mean vanilla',
+                    'difference', 't', 'df', 'p', 'p (Holm)', 'Hedges g', 'note'), rows),
     ])
 
 
@@ -297,12 +277,13 @@ def regenerate_section(command: str, log: Sequence[Mapping], analysis: Mapping,
              'the result files from the run folders they name (for fields added later).']
     if runs:
         parallel = sorted({entry.get('parallel') for entry in runs})
-        lines += ['', f'Measured wall time: {_duration(total)} over {len(runs)} invocation(s) '
-                  f'that ran {sum(e["trials_run"] for e in runs)} trial(s), with `--parallel` '
-                  f'{", ".join(str(p) for p in parallel)}, on a machine with {cpus or "?"} CPU '
+        lines += ['', f'Measured wall time: {minutes_seconds(total)} over {len(runs)} '
+                  f'invocation(s) that ran {sum(e["trials_run"] for e in runs)} trial(s), with '
+                  f'`--parallel` {", ".join(str(p) for p in parallel)}, on a machine with '
+                  f'{cpus or "?"} CPU '
                   'cores.']
     if trial_seconds:
-        lines += [f'Sum of per-trial wall times: {_duration(sum(trial_seconds))}.']
+        lines += [f'Sum of per-trial wall times: {minutes_seconds(sum(trial_seconds))}.']
     return '\n'.join(lines)
 
 
@@ -320,8 +301,8 @@ def per_trial_appendix(by_condition: Mapping[str, Sequence[Mapping]]) -> str:
         '## Appendix: every trial', '',
         'First visit: the first step at which the agent stood on positions 0 1 2 3 4 5 '
         '(– never).', '',
-        _table(('condition', 'seed', 'outcome', 'furthest', 'first visit 0..5', 'keys',
-                'episodes', 'lives used', 'wall s'), rows)])
+        table_text(('condition', 'seed', 'outcome', 'furthest', 'first visit 0..5', 'keys',
+                    'episodes', 'lives used', 'wall s'), rows)])
 
 
 def write_report(path: Path, analysis: Mapping, by_condition: Mapping[str, Sequence[Mapping]],

@@ -5,8 +5,7 @@ from typing import Mapping
 
 from attention_tasks.doorkey.env import DoorKeyEnv, DoorKeyEnvConfig, REALTIME_HZ
 from attention_tasks.doorkey.frames import collect_frames
-from attention_tasks.doorkey.language import SUBGOALS
-from attention_tasks.doorkey.world import AGENT_VIEW, TILE_SIZE
+from attention_tasks.doorkey.world import AGENT_VIEW, SUBGOALS, TILE_SIZE
 from attention_tasks.task import Task
 
 JOY_ACTIONS = (4, 3, 2, 5, 13, 1)

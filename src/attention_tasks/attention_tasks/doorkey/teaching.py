@@ -28,8 +28,9 @@ from typing import Mapping, Optional, Tuple
 
 from attention_tasks.doorkey.expert import (
     DIRECTIONS, DROP, FORWARD, LEFT, next_action, PICKUP, RIGHT, TOGGLE)
-from attention_tasks.doorkey.language import progress, sentence, SUBGOALS
-from attention_tasks.doorkey.world import DoorKeyState, planner_view, state_from_status
+from attention_tasks.doorkey.language import sentence
+from attention_tasks.doorkey.world import (
+    DoorKeyState, planner_view, progress, state_from_status, SUBGOALS)
 from minigrid.core.constants import (
     COLOR_NAMES, COLOR_TO_IDX, IDX_TO_COLOR, OBJECT_TO_IDX, STATE_TO_IDX)
 
@@ -152,6 +153,10 @@ def _by_the_ends(mine: Optional[float], theirs: Optional[float]) -> Optional[boo
 class DoorKeyKnowledge:
     """The teacher's knowledge of DoorKey (``feedback_node.task_teacher.TeacherKnowledge``)."""
 
+    SILENT = ('no_expert_action',)
+    SPEAKS_AT_NEW_EPISODE = True
+    """A new episode is a new layout: name its objects at once."""
+
     def observe(self, values: Mapping[str, object]) -> DoorKeyState:
         """Return the state ``values`` describe; KeyError, ValueError when they do not."""
         state = state_from_status(values)
@@ -176,6 +181,10 @@ class DoorKeyKnowledge:
 
     def expert_action(self, state: DoorKeyState) -> Optional[int]:
         return expert_action_of(state)
+
+    def silent(self, state: DoorKeyState, expert_action: Optional[int]) -> Optional[str]:
+        """Return 'no_expert_action' where there is none (at the goal, no way), else None."""
+        return 'no_expert_action' if expert_action is None else None
 
     def as_good(self, state: DoorKeyState, action: int, expert_action: int) -> bool:
         """Tell whether ``action`` leaves the expert's plan as short as ``expert_action``."""

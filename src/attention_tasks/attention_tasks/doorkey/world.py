@@ -142,7 +142,6 @@ class DoorKeyState:
 
     def status(self) -> dict:
         """Return the env_status values of the state (``env_node.status``)."""
-        from attention_tasks.doorkey.language import progress
         return {'lives': 1, 'has_key': self.has_key, 'room': 0, 'x': self.x, 'y': self.y,
                 'direction': self.direction, 'carrying': self.carrying,
                 'door_color': self.door_color, 'door_open': self.door_open,
@@ -152,6 +151,19 @@ class DoorKeyState:
     def position(self):
         """Return agent_position's (x, y, z): the agent's cell (z 0: one room)."""
         return float(self.x), float(self.y), 0.0
+
+
+SUBGOALS = ('key', 'door', 'goal')
+"""The level's sub-goals in order: they take the place of Room 1's critical positions."""
+
+
+def progress(state: DoorKeyState) -> int:
+    """Return how many sub-goals are done (0..3); an open door counts the key as taken."""
+    if state.at_goal:
+        return 3
+    if state.door_open:
+        return 2
+    return 1 if state.has_key else 0
 
 
 def observe(env: DistractorDoorKeyEnv) -> np.ndarray:

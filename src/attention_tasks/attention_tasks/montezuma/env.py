@@ -31,7 +31,7 @@ KEY_BIT = 0x02  # inventory bit set while the agent carries the key
 RAM_POSE = 53
 """The sprite the game draws for the agent (what a person sees it doing): 8 standing, 18
 walking, 10 and 0 climbing a ladder, 6 jumping or falling, 4 and 14 on the rope, 22 and 30
-dying (read off the expert's route; ``feedback_node.action_effects`` measures what it means)."""
+dying (read off the expert's route; ``action_effects`` measures what it means)."""
 STANDING_POSES = frozenset((8, 18, 10, 0, 4, 14))
 """Poses of an agent held by something: the ground (standing, walking), a ladder, the rope."""
 RAM_SKULL_X = 47

@@ -5,8 +5,8 @@ Two actions are *equivalent* in a state when, applied there for one agent step a
 the same ``FOLLOW_STEPS`` steps (NOOPs, or a press of the button and NOOPs: holding the button
 is not releasing it), they leave the agent at the same positions, with the same room, lives and
 inventory, step by step (measured with the emulator by ``teacher_effects``,
-``feedback_node/measure_effects.py``). On the floor LEFT, UPLEFT and DOWNLEFT walk alike; on a
-ladder they do not (only UP and DOWN move there); in the air or while dying every action does
+``measure_effects.py``). On the floor LEFT, UPLEFT and DOWNLEFT walk alike; on a ladder they do
+not (only UP and DOWN move there); in the air or while dying every action does
 the same to the game (the button an action leaves held aside): the action cannot matter.
 
 A person judging the agent cannot see the emulator's state, only the screen. The table is

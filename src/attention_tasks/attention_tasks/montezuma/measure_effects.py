@@ -1,7 +1,7 @@
 """
 ``teacher_effects``: measure with the emulator which actions do the same where.
 
-Writes the teacher's table (``feedback_node/data/action_effects.json``).
+Writes the teacher's table (``attention_tasks/montezuma/data/action_effects.json``).
 
 States come from real play: the scripted expert from random warm-ups, mixed with random actions
 held for a few steps (as a learner's greedy policy holds them), so that the agent walks into
@@ -23,12 +23,12 @@ import sys
 from typing import Iterator, List, Sequence, Tuple
 
 from attention_common.joy_actions import NUM_ACTIONS
+from attention_tasks.montezuma.action_effects import (
+    AGREEMENT, build_table, FOLLOW_STEPS, Measured, MIN_STATES, MOOT_SHARE, partition_of,
+    place_of, Situation, TABLE_PATH)
 from attention_tasks.montezuma.env import (
     EnvConfig, MontezumaEnv, RAM_INVENTORY, RAM_LIVES, RAM_ROOM, RAM_X, RAM_Y)
 from attention_tasks.montezuma.expert import FIRE_ACTIONS, NOOP, phase_of, RIGHTFIRE, RoomOneExpert
-from feedback_node.action_effects import (
-    AGREEMENT, build_table, FOLLOW_STEPS, Measured, MIN_STATES, MOOT_SHARE, partition_of,
-    place_of, Situation, TABLE_PATH)
 import numpy as np
 
 DEFAULT_SEEDS = (0, 1, 2, 3, 4, 5)
@@ -105,7 +105,7 @@ def play_states(seed: int, steps: int, exploration: float) -> Iterator[Tuple[obj
 
 
 def situation_of(step) -> Situation:
-    """Return what the teacher sees of a step (``teacher.Teacher`` sees it from topics)."""
+    """Return what the teacher sees of a step (the teacher sees it from topics)."""
     state = step.state
     return Situation(phase_of(state).name, place_of(state.x, state.y), state.pose,
                      step.action in FIRE_ACTIONS)
