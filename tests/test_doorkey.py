@@ -3,7 +3,8 @@
 from attention_tasks.doorkey.expert import DROP, next_action, PICKUP, TOGGLE
 from attention_tasks.doorkey.language import sentence
 from attention_tasks.doorkey.world import (
-    DistractorDoorKeyEnv, DoorKeyConfig, observe, progress, state_of)
+    DistractorDoorKeyEnv, DoorKeyConfig, progress, state_of)
+from attention_tasks.gridworld import observe
 import numpy as np
 import pytest
 

@@ -267,7 +267,7 @@ def test_a_signal_during_start_up_exits_cleanly(start_node, sig):
     ({'frameskip': 0}, 'frameskip'),
     ({'action_timeout': 0.0}, 'action_timeout'),
     ({'rate_hz': 'fast'}, 'rate_hz'),
-    ({'task': 'pong'}, "unknown task 'pong'; installed tasks: doorkey, montezuma"),
+    ({'task': 'pong'}, "unknown task 'pong'; installed tasks: doorkey, fetch, montezuma"),
     ({'task': 'doorkey', 'distractors': 99}, 'distractors must be in 0..12'),
 ], ids=['frameskip', 'action_timeout', 'rate_hz', 'task', 'doorkey_distractors'])
 def test_bad_parameters_stop_it_with_a_clear_message(start_node, params, message):
@@ -293,7 +293,7 @@ def test_first_step_waits_for_the_expected_subscribers(probe, start_node):
 
 def test_doorkey_over_the_same_topics(start_node, probe):
     """task:=doorkey: 112x112 frames (the agent's view), MiniGrid's actions as joystick ones."""
-    from attention_tasks.doorkey.env import STEP_S
+    from attention_tasks.gridworld import STEP_S
     from attention_tasks.task import load_task
     task = load_task('doorkey')
     learner = Learner(probe)

@@ -324,6 +324,30 @@ def test_doorkey_trains_through_the_real_graph(tmp_path):
 
 
 @pytest.mark.topics
+def test_fetch_runs_on_every_node_by_name_and_says_each_mission(tmp_path):
+    """attention_train --task fetch: a task added as one sub-package, no node edited."""
+    run_dir, steps = tmp_path / 'run', 120
+    result = subprocess.run(
+        [LAUNCHER, '--task', 'fetch', '--steps', str(steps), '--seed', '4', '--run-dir',
+         str(run_dir), '--quiet'], capture_output=True, text=True, timeout=240)
+    assert result.returncode == 0, result.stderr[-4000:]
+    summary = _read_json(run_dir / 'summary.json')
+    assert summary['status'] == 'completed' and summary['steps'] == steps
+    assert summary['task'] == 'fetch' and summary['milestones'] == ['reached', 'fetched']
+    assert summary['exit_codes'] == dict.fromkeys(NODES, 0)
+    # Episodes end at a pick-up or after 50 steps: each has its target, said at its start.
+    logged = [json.loads(line) for line in
+              (run_dir / 'feedback_log.jsonl').read_text().splitlines()]
+    said = [entry['text'] for entry in logged if entry['kind'] == 'utterance']
+    assert summary['episodes'] >= steps // 50
+    assert len(said) >= summary['episodes'] and all(
+        text.startswith('pick up the ') for text in said)
+    assert summary['learner_log']['feedback'] >= 0.8 * steps  # the teacher judged the steps
+    metrics = summary['metrics']
+    assert metrics['pairing/with_saliency'] > 0  # the words grounded in the room's objects
+
+
+@pytest.mark.topics
 def test_a_person_teaches_doorkey_over_topics(tmp_path, probe):
     """--no-synthetic --realtime: what a person sends with ros2 topic pub reaches the log."""
     from attention_common import qos, topics

@@ -468,7 +468,7 @@ def test_the_summary_counts_what_the_learner_logged(tmp_path):
 # -- another task ---------------------------------------------------------------------------
 
 def test_task_doorkey_reaches_every_node_with_its_files_and_rate(tmp_path):
-    from attention_tasks.doorkey.env import REALTIME_HZ
+    from attention_tasks.gridworld import REALTIME_HZ
     plan = _plan(tmp_path, task='doorkey', realtime=True, human_like=True, console=True,
                  seed=3)
     for node in graph.NODES:

@@ -1,16 +1,16 @@
 """The task contract: tasks load by name, their tables agree, both worlds step the same way."""
 
 from attention_common.joy_actions import action_to_joy, joy_to_action
-from attention_tasks.doorkey.env import layout_seed
+from attention_tasks.gridworld import layout_seed
 from attention_tasks.task import load_task, NO_ACTION, task_names, UnknownTask
 import numpy as np
 import pytest
 
 
 def test_the_installed_tasks_load_by_name_and_an_unknown_one_is_named():
-    assert task_names() == ('doorkey', 'montezuma')
+    assert task_names() == ('doorkey', 'fetch', 'montezuma')
     with pytest.raises(UnknownTask, match="unknown task 'pong'; installed tasks: doorkey, "
-                                          'montezuma'):
+                                          'fetch, montezuma'):
         load_task('pong')
 
 

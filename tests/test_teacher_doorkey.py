@@ -11,10 +11,11 @@ import copy
 import itertools
 
 from attention_tasks.doorkey import teaching
-from attention_tasks.doorkey.env import DoorKeyEnv, DoorKeyEnvConfig, STEP_S
+from attention_tasks.doorkey.env import DoorKeyEnv, DoorKeyEnvConfig
 from attention_tasks.doorkey.expert import (
     DROP, FORWARD, LEFT, next_action, PICKUP, RIGHT, TOGGLE)
 from attention_tasks.doorkey.world import DistractorDoorKeyEnv, DoorKeyConfig, progress, state_of
+from attention_tasks.gridworld import STEP_S
 from attention_tasks.montezuma.teaching import RoomOneKnowledge
 from attention_tasks.task import Step
 from env_node.status import Counters, parse_status, status_values
@@ -353,7 +354,7 @@ def test_the_task_chooses_the_trainer():
     assert doorkey.num_actions == 6
     with pytest.raises(ValueError, match="trainer 'thesis' measures Room 1"):
         FeedbackConfig(task='doorkey')
-    with pytest.raises(ValueError, match='installed tasks: doorkey, montezuma'):
+    with pytest.raises(ValueError, match='installed tasks: doorkey, fetch, montezuma'):
         FeedbackConfig(task='sokoban', trainer='teacher')
     with pytest.raises(UnknownTeacher, match='attention_tasks.sokoban.teaching'):
         load_knowledge('sokoban')

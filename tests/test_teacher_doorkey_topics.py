@@ -140,7 +140,7 @@ def test_the_doorkey_teacher_judges_each_action_and_names_the_sub_goals(probe, s
 
 @pytest.mark.parametrize('params, message', [
     ({'task': 'doorkey', 'trainer': 'thesis'}, "trainer 'thesis' measures Room 1's critical"),
-    ({'task': 'sokoban', 'trainer': 'teacher'}, 'installed tasks: doorkey, montezuma'),
+    ({'task': 'sokoban', 'trainer': 'teacher'}, 'installed tasks: doorkey, fetch, montezuma'),
 ])
 def test_the_node_refuses_a_trainer_the_task_cannot_have(start_node, params, message):
     node = start_node('feedback_node', params)

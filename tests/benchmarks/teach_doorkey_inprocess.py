@@ -25,7 +25,8 @@ from teach_inprocess import parse_value
 def run_trial(seed: int, steps: int, heldout: int, human_like: bool, overrides: dict,
               workdir: Path) -> dict:
     from attention_bringup.plan import human_like_window_s
-    from attention_tasks.doorkey.env import DoorKeyEnv, DoorKeyEnvConfig, STEP_S
+    from attention_tasks.doorkey.env import DoorKeyEnv, DoorKeyEnvConfig
+    from attention_tasks.gridworld import STEP_S
     from env_node.status import Counters, parse_status, status_values
     from feedback_node.human_like import HUMAN_LIKE_SETTING
     from feedback_node.judging import TeacherConfig

@@ -151,7 +151,8 @@ def chance_levels(episodes: int = 200, seed: int = 0, max_episode_steps: int = 1
     sub-goals done per episode by a policy that learned nothing.
     """
     import numpy as np
-    from attention_tasks.doorkey.env import DoorKeyEnv, DoorKeyEnvConfig, NUM_ACTIONS
+    from attention_tasks.doorkey.env import DoorKeyEnv, DoorKeyEnvConfig
+    from attention_tasks.gridworld import NUM_ACTIONS
     from attention_tasks.doorkey.expert import next_action
     rng = np.random.default_rng(seed)
     env = DoorKeyEnv(DoorKeyEnvConfig(seed=seed, heldout_after=1,
@@ -197,7 +198,8 @@ def judged_good_by_kind(seed: int = 0, steps: int = 3000) -> Dict[str, float]:
     the rest (pick up, drop, toggle), each the fraction judged +1 where the expert has a plan.
     """
     import numpy as np
-    from attention_tasks.doorkey.env import DoorKeyEnv, DoorKeyEnvConfig, NUM_ACTIONS
+    from attention_tasks.doorkey.env import DoorKeyEnv, DoorKeyEnvConfig
+    from attention_tasks.gridworld import NUM_ACTIONS
     from attention_tasks.doorkey.teaching import KNOWLEDGE
     from env_node.status import Counters, parse_status, status_values
     rng = np.random.default_rng(seed)

@@ -1,7 +1,7 @@
 """
 Render the saliency node's DoorKey templates: one PNG per cell look the manifest lists.
 
-A template is one cell of the agent's view as MiniGrid draws it (``world.observe``:
+A template is one cell of the agent's view as MiniGrid draws it (``gridworld.observe``:
 ``Grid.render`` of the 7 x 7 cells ahead, ``TILE_SIZE`` pixels each, the cells the agent can
 see highlighted; hidden ones are drawn empty), the same pixels wherever the cell is: what the
 cell holds (``cell``: 'yellow key', 'blue door open', 'goal', 'floor') and, with ``agent_dir``,
@@ -20,7 +20,7 @@ from pathlib import Path
 import sys
 from typing import Dict, Iterator, Optional, Tuple
 
-from attention_tasks.doorkey.world import TILE_SIZE
+from attention_tasks.gridworld import TILE_SIZE
 import cv2
 from minigrid.core.constants import COLOR_NAMES
 from minigrid.core.grid import Grid

@@ -3,15 +3,12 @@
 from pathlib import Path
 from typing import Mapping
 
-from attention_tasks.doorkey.env import DoorKeyEnv, DoorKeyEnvConfig, REALTIME_HZ
+from attention_tasks.doorkey.env import DoorKeyEnv, DoorKeyEnvConfig
 from attention_tasks.doorkey.frames import collect_frames
-from attention_tasks.doorkey.world import AGENT_VIEW, SUBGOALS, TILE_SIZE
+from attention_tasks.doorkey.world import SUBGOALS
+from attention_tasks.gridworld import (
+    ACTION_NAMES, AGENT_VIEW, JOY_ACTIONS, REALTIME_HZ, TILE_SIZE)
 from attention_tasks.task import Task
-
-JOY_ACTIONS = (4, 3, 2, 5, 13, 1)
-"""The joystick action carrying each MiniGrid action: left turns left (LEFT), right turns
-right (RIGHT), forward is UP, pick up is DOWN, drop is DOWN+FIRE, toggle (open) is FIRE."""
-ACTION_NAMES = ('left', 'right', 'forward', 'pickup', 'drop', 'toggle')
 MANIFEST = Path(__file__).resolve().parent / 'templates' / 'manifest.yaml'
 """The saliency node's templates of every object kind and colour (``doorkey_make_templates``)."""
 

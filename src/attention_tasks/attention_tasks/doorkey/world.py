@@ -25,6 +25,7 @@ from types import SimpleNamespace
 from typing import Mapping, Optional, Tuple
 
 from attention_tasks.doorkey.expert import solvable
+from attention_tasks.gridworld import AGENT_VIEW, TILE_SIZE
 from minigrid.core.constants import COLOR_NAMES
 from minigrid.core.grid import Grid
 from minigrid.core.mission import MissionSpace
@@ -33,10 +34,6 @@ from minigrid.minigrid_env import MiniGridEnv
 import numpy as np
 
 DISTRACTOR_KINDS = (Key, Ball, Box)
-TILE_SIZE = 16
-"""Pixels per cell of every rendered frame: large enough for template matching."""
-AGENT_VIEW = 7
-"""Cells per side of the agent's own view (MiniGrid's default): frames of 112 x 112."""
 MAX_LAYOUT_TRIES = 100
 
 
@@ -164,11 +161,6 @@ def progress(state: DoorKeyState) -> int:
     if state.door_open:
         return 2
     return 1 if state.has_key else 0
-
-
-def observe(env: DistractorDoorKeyEnv) -> np.ndarray:
-    """Return the agent's view: (112, 112, 3) uint8 RGB, the agent at the bottom centre."""
-    return env.get_frame(highlight=False, tile_size=TILE_SIZE, agent_pov=True)
 
 
 def state_of(env: DistractorDoorKeyEnv, layout: int = -1, heldout: bool = False
