@@ -35,9 +35,10 @@ def add_run_options(parser: argparse.ArgumentParser, parallel: Optional[int]) ->
 
 
 def argument_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog='attention_experiment',
-                                     description=__doc__.split('\n')[1],
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(
+        prog='attention_experiment', formatter_class=argparse.RawDescriptionHelpFormatter,
+        description='Run an experiment from its spec, resumably, and write its report.',
+        epilog='\n'.join(__doc__.strip().split('\n')[2:]).replace('``', ''))
     parser.add_argument('spec', help='a spec file (YAML) or a shipped spec by name')
     parser.add_argument('--arms', nargs='+', metavar='NAME', help='only these arms')
     parser.add_argument('--seeds', type=int, nargs='+', help="only these seeds (the spec's)")
