@@ -124,3 +124,16 @@ def test_a_spec_runs_resumes_and_reports_through_one_engine(tmp_path, stand_in, 
     assert json.loads(crashed.read_text())['outcome'] == 'completed'
     assert len(list((crashed.parent / 'retried').glob('*.json'))) == 1
     assert json.loads((out / 'study_log.json').read_text())[-1]['trials_run'] == 1
+
+
+def test_a_spec_names_a_plugin_that_exists(tmp_path):
+    spec = specs.from_dict(dict(GOOD, plugin='astrology'), 'my.yaml')
+    with pytest.raises(SpecError, match="my.yaml: no plug-in 'astrology'"):
+        engine.plugin_of(spec)
+
+
+def test_parameters_every_trial_gets_are_written_as_yaml(tmp_path):
+    spec = specs.from_dict(dict(GOOD, out=str(tmp_path), parameters={
+        'env_node': {'heldout_after': 7500, 'note': 'a: b'}}))
+    written = yaml.safe_load(engine.write_params(spec).read_text())
+    assert written == {'env_node': {'ros__parameters': {'heldout_after': 7500, 'note': 'a: b'}}}

@@ -21,15 +21,19 @@ from attention_bringup.experiment.spec import Arm, Spec, SpecError
 from attention_bringup.experiment.trials import (
     load_records, read_json, refresh_records, trial_path, write_json)
 from attention_common.run_files import ANALYSIS_FILE
+import yaml
 
 Say = Callable[[str], None]
 
 
 def plugin_of(spec: Spec):
     """Import the spec's plug-in module (``experiment/plugins/<name>.py``)."""
+    name = f'attention_bringup.experiment.plugins.{spec.plugin}'
     try:
-        return importlib.import_module(f'attention_bringup.experiment.plugins.{spec.plugin}')
+        return importlib.import_module(name)
     except ModuleNotFoundError as error:
+        if error.name != name:
+            raise  # the plug-in is there; something it imports is not
         raise SpecError(f'{spec.source or spec.name}: no plug-in {spec.plugin!r}') from error
 
 
@@ -61,11 +65,9 @@ def write_params(spec: Spec) -> Optional[Path]:
         return None
     path = Path(spec.out) / spec.params_file
     path.parent.mkdir(parents=True, exist_ok=True)
-    lines = [f'# Written by the experiment engine ({spec.name!r}): every trial of the study.']
-    for node, values in parameters.items():
-        lines += [f'{node}:', '  ros__parameters:']
-        lines += [f'    {name}: {value}' for name, value in values.items()]
-    path.write_text('\n'.join(lines) + '\n')
+    nodes = {node: {'ros__parameters': values} for node, values in parameters.items()}
+    path.write_text(f'# Written by the experiment engine ({spec.name!r}): every trial of the '
+                    f'study.\n{yaml.safe_dump(nodes, sort_keys=False)}')
     return path
 
 
