@@ -17,7 +17,7 @@ has nothing to say it is silent. A task whose new episode is a new layout
 """
 
 import importlib
-from typing import Any, Hashable, Mapping, NamedTuple, Optional, Protocol, Tuple
+from typing import Any, Mapping, NamedTuple, Optional, Protocol, Tuple
 
 from attention_tasks.task import NO_ACTION
 from feedback_node.judging import ActionTeacher, TeacherConfig
@@ -37,7 +37,7 @@ class TeacherKnowledge(Protocol):
     (the utterance's ``position``; -1 without it).
     """
 
-    def observe(self, values: Mapping[str, object]) -> Hashable:
+    def observe(self, values: Mapping[str, object]) -> Any:
         """Return the task's state of a step's parsed env_status; KeyError, ValueError: bad."""
 
     def expert_action(self, state: Any) -> Optional[int]:
