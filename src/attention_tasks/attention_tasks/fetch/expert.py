@@ -40,15 +40,19 @@ def _target_cell(level, target: str) -> Optional[Tuple[int, int]]:
     return None
 
 
-def distances(state: FetchState) -> Dict[Pose, int]:
+def _free(level):
+    """Return whether a cell of ``level`` can be walked onto (in the room, nothing on it)."""
+    return lambda c: 0 <= c[0] < level.size and 0 <= c[1] < level.size and (
+        level.grid.get(*c) is None)
+
+
+def distances(state: FetchState, level=None) -> Dict[Pose, int]:
     """Return every pose's number of moves to face the target (unreachable poses absent)."""
-    level = decode_grid(state)
+    level = level or decode_grid(state)
     cell = _target_cell(level, state.target)
     if cell is None:
         return {}
-
-    def free(c) -> bool:
-        return 0 <= c[0] < level.size and 0 <= c[1] < level.size and level.grid.get(*c) is None
+    free = _free(level)
 
     # Backwards from every pose that faces the target: the moves that lead into a pose.
     goals = [(cell[0] - dx, cell[1] - dy, d) for d, (dx, dy) in enumerate(DIRECTIONS)]
@@ -68,12 +72,13 @@ def distances(state: FetchState) -> Dict[Pose, int]:
     return found
 
 
-def plan_length(state: FetchState, pose: Optional[Pose] = None) -> Optional[int]:
+def plan_length(state: FetchState, pose: Optional[Pose] = None,
+                level=None) -> Optional[int]:
     """Return the actions left to fetch the target from ``pose`` (the state's); None: no way."""
     if state.carrying:
         return 0 if state.fetched else None
     pose = pose or (state.x, state.y, state.direction)
-    moves = distances(state).get(pose)
+    moves = distances(state, level).get(pose)
     return None if moves is None else moves + 1
 
 
@@ -81,19 +86,15 @@ def next_action(state: FetchState) -> Optional[int]:
     """Return the expert's action; None when there is none (something in hand, no way)."""
     if state.carrying:
         return None
-    found = distances(state)
+    level = decode_grid(state)
+    found = distances(state, level)
     pose = (state.x, state.y, state.direction)
     if pose not in found:
         return None
     if found[pose] == 0:
         return PICKUP
-    level = decode_grid(state)
-
-    def free(c) -> bool:
-        return level.grid.get(*c) is None
-
     for action in (LEFT, RIGHT, FORWARD):
-        if found.get(after(pose, action, free), -1) == found[pose] - 1:
+        if found.get(after(pose, action, _free(level)), -1) == found[pose] - 1:
             return action
     return None
 
@@ -101,11 +102,7 @@ def next_action(state: FetchState) -> Optional[int]:
 def moves_after(state: FetchState, actions: List[int]) -> Optional[int]:
     """Return the plan length after ``actions`` from the state's pose (turns and forwards)."""
     level = decode_grid(state)
-
-    def free(c) -> bool:
-        return level.grid.get(*c) is None
-
     pose = (state.x, state.y, state.direction)
     for action in actions:
-        pose = after(pose, action, free)
-    return plan_length(state, pose)
+        pose = after(pose, action, _free(level))
+    return plan_length(state, pose, level)
