@@ -6,7 +6,7 @@
 PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
-PACKAGES := attention_common attention_tasks env_node feedback_node saliency_node tamer_node trainer_console session_bag attention_bringup
+PACKAGES := attention_common attention_tasks env_node feedback_node saliency_node tamer_node trainer_console session_bag graph_viewer attention_bringup
 STAMP := $(VENV)/.installed
 # DDS stays on loopback for everything started from here (see README, "Network").
 export ROS_AUTOMATIC_DISCOVERY_RANGE := LOCALHOST

@@ -38,6 +38,28 @@ def _format_param(value) -> str:
     return str(value)
 
 
+def listening_sockets() -> set:
+    """Return the (address, port) of every listening TCP socket on this machine."""
+    found = set()
+    for name in ('/proc/net/tcp', '/proc/net/tcp6'):
+        with open(name) as table:
+            for line in list(table)[1:]:
+                fields = line.split()
+                if fields[3] == '0A':  # LISTEN
+                    address, port = fields[1].split(':')
+                    found.add((address, int(port, 16)))
+    return found
+
+
+def loopback_address(hex_address: str) -> bool:
+    """Tell a /proc/net address on loopback (127.x, ::1, ::ffff:127.x) from any other."""
+    if len(hex_address) == 8:  # IPv4, its bytes reversed: 127.0.0.1 is 0100007F
+        return hex_address.endswith('7F')
+    mapped_v4 = hex_address.startswith('0000000000000000FFFF0000')
+    return (hex_address == '00000000000000000000000001000000'
+            or mapped_v4 and hex_address.endswith('7F'))
+
+
 class NodeProcess:
     """A node executable from the venv, run as its own process with its log in a file."""
 

@@ -16,7 +16,7 @@ import time
 
 from attention_bringup.experiment.ray_backend import GRAPH_RESOURCE, LOOPBACK
 from attention_bringup.processes import is_running
-from harness import wait_until
+from harness import listening_sockets, loopback_address, wait_until
 import pytest
 import yaml
 
@@ -27,37 +27,15 @@ SAME_FIELDS = ('condition', 'seed', 'budget', 'outcome', 'steps', 'parameters', 
 """What a trial's result file says whichever backend ran it (times and folders differ)."""
 
 
-def _listening() -> set:
-    """Return the (address, port) of every listening TCP socket on this machine."""
-    found = set()
-    for name in ('/proc/net/tcp', '/proc/net/tcp6'):
-        with open(name) as table:
-            for line in list(table)[1:]:
-                fields = line.split()
-                if fields[3] == '0A':  # LISTEN
-                    address, port = fields[1].split(':')
-                    found.add((address, int(port, 16)))
-    return found
-
-
-def _loopback(hex_address: str) -> bool:
-    """Tell a /proc/net address on loopback (127.x, ::1, ::ffff:127.x) from any other."""
-    if len(hex_address) == 8:  # IPv4, its bytes reversed: 127.0.0.1 is 0100007F
-        return hex_address.endswith('7F')
-    mapped_v4 = hex_address.startswith('0000000000000000FFFF0000')
-    return (hex_address == '00000000000000000000000001000000'
-            or mapped_v4 and hex_address.endswith('7F'))
-
-
 @pytest.fixture(scope='module')
 def cluster():
     os.environ.update(LOOPBACK)
-    before = _listening()
+    before = listening_sockets()
     from ray.cluster_utils import Cluster
     ray_cluster = Cluster(initialize_head=True, head_node_args={
         'num_cpus': 1, 'resources': {GRAPH_RESOURCE: 1}, 'include_dashboard': False})
     ray_cluster.add_node(num_cpus=1, resources={GRAPH_RESOURCE: 1})
-    ray_cluster.opened = _listening() - before
+    ray_cluster.opened = listening_sockets() - before
     yield ray_cluster
     ray_cluster.shutdown()
 
@@ -66,7 +44,7 @@ def cluster():
 def test_the_ray_cluster_listens_on_loopback_only(cluster):
     assert cluster.address.startswith('127.0.0.1:')
     assert cluster.opened, 'the cluster opened no listening socket?'
-    assert [s for s in cluster.opened if not _loopback(s[0])] == []
+    assert [s for s in cluster.opened if not loopback_address(s[0])] == []
 
 
 def _study(out: Path, *extra: str) -> subprocess.CompletedProcess:

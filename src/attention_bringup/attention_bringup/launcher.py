@@ -29,7 +29,7 @@ from attention_bringup.gallery import GalleryCollector
 from attention_bringup.graph import NODES
 from attention_bringup.params import ParamsFileError
 from attention_bringup.plan import (
-    build_plan, chosen_domain, CONSOLE, Continuation, LaunchPlan, parse_options,
+    build_plan, chosen_domain, CONSOLE, Continuation, FOXGLOVE, LaunchPlan, parse_options,
     RECORDER, resumed_options, save_options)
 from attention_bringup.processes import (
     cpu_seconds, exit_description, log_tail, node_environ, NodeGroup, resident_memory_kb)
@@ -40,6 +40,7 @@ from attention_common.run_files import (
     CHECKPOINT_DIR, FEEDBACK_LOG, GALLERY_FILE, LEARNING_CURVE_FILE, LOGS_DIR, METRICS_CSV,
     of_session, OPTIONS_FILE, OVERRIDES_FILE, PARAMS_FILE, PIDS_FILE, PROGRESS_FILE, SUMMARY_FILE)
 from attention_tasks.task import load_task, ROOM_1
+from graph_viewer.layout import LAYOUT_FILE
 from session_bag import info as bag_info
 from session_bag.reader import ends_whole, storage_path
 from session_bag.repair import repair
@@ -67,6 +68,7 @@ class Launcher:
         self.interactive = (not plan.options.quiet) and err.isatty()
         self._gallery_steps = {}  # gallery image stamp -> agent step
         self.console_url: Optional[str] = None
+        self.foxglove_url: Optional[str] = None
 
     # -- set-up ---------------------------------------------------------------------------
     def _prepare_run_dir(self) -> None:
@@ -237,6 +239,7 @@ class Launcher:
             if ended:
                 return ended
             self._announce_console()
+            self._announce_foxglove()
             with monitor.lock:
                 tracker = monitor.tracker
                 writer.write(tracker.take_new_rows())
@@ -272,6 +275,18 @@ class Launcher:
             self.console_url = found.group(1)
             self._say(f'Trainer console: {self.console_url} (open it in a browser: + or Up '
                       'is good, - or Down is bad, type words and press Enter)')
+
+    def _announce_foxglove(self) -> None:
+        """Print the Foxglove bridge's URL once it serves (``--foxglove``)."""
+        if not self.plan.options.foxglove or self.foxglove_url is not None:
+            return
+        command = next(c for c in self.plan.commands if c.name == FOXGLOVE)
+        found = re.search(r'Foxglove bridge at (\S+)', log_tail(command.log_path))
+        if found:
+            self.foxglove_url = found.group(1)
+            self._say(f'Foxglove: {self.foxglove_url} (in Foxglove or Lichtblick: Open '
+                      'connection, Foxglove WebSocket, this URL; the layout: '
+                      f'{LAYOUT_FILE})')
 
     def _label_gallery(self, tracker, gallery) -> None:
         """Note the agent step of each gallery image while the tracker still knows it."""
@@ -431,6 +446,7 @@ class Launcher:
             'steps': steps,
             'session': self.plan.continuation.session,
             'console_url': self.console_url,
+            'foxglove_url': self.foxglove_url,
             'wall_time_s': round(time.monotonic() - self.started_wall, 2),
             'startup_s': first['wall_time_s'] if first else None,
             'training_time_s': round(training_s, 2),

@@ -23,6 +23,7 @@ from attention_tasks.montezuma.task import REALTIME_RATE_HZ  # noqa: F401 (Room 
 from attention_tasks.task import DEFAULT_TASK, load_task, task_names
 from feedback_node.human_like import HUMAN_LIKE_SETTING
 from feedback_node.judging import TRAINERS
+from graph_viewer.config import DEFAULT_PORT as FOXGLOVE_PORT
 
 DEFAULT_STEPS = 10000
 """Agent steps of a default run (the thesis's trial): about 4 minutes on 2 busy CPU cores."""
@@ -30,6 +31,8 @@ DEFAULT_STEPS = 10000
 
 CONSOLE = 'trainer_console'
 CONSOLE_PORT = 8080
+FOXGLOVE = 'graph_viewer'
+"""The Foxglove bridge's executable and node name (package graph_viewer)."""
 RECORDER = 'session_recorder'
 """The bag recorder's executable and node name (package session_bag)."""
 BAG_DIR = 'bag'
@@ -111,6 +114,10 @@ class LaunchOptions:
     """Start the trainer console too (a fifth process) and print its URL."""
     console_port: int = CONSOLE_PORT
     """The console's port on 127.0.0.1."""
+    foxglove: bool = False
+    """Start the Foxglove bridge too (``graph_viewer``) and print the URL to open in Foxglove."""
+    foxglove_port: int = FOXGLOVE_PORT
+    """The bridge's port on 127.0.0.1 (Foxglove's default, 8765; 0: any free one)."""
     record: Optional[bool] = None
     """Record the session as a rosbag2 bag (``bag/``); None: when a person trains."""
 
@@ -208,6 +215,13 @@ def argument_parser() -> argparse.ArgumentParser:
                              'its URL: a person judges with the keyboard and types utterances')
     parser.add_argument('--console-port', dest='console_port', type=int, default=CONSOLE_PORT,
                         help=f'port of the console (default {CONSOLE_PORT}; 0: any free one)')
+    parser.add_argument('--foxglove', action='store_true',
+                        help='also start the Foxglove bridge (graph_viewer: the Foxglove '
+                             'WebSocket protocol on 127.0.0.1) and print the URL to open in '
+                             'Foxglove or Lichtblick')
+    parser.add_argument('--foxglove-port', dest='foxglove_port', type=int, default=FOXGLOVE_PORT,
+                        help=f'port of the Foxglove bridge (default {FOXGLOVE_PORT}; 0: any free '
+                             'one)')
     parser.add_argument('--record', dest='record', action='store_true', default=None,
                         help='record the session as a rosbag2 bag with MCAP storage in the run '
                              "folder's bag/ (every topic, for ros2 bag, Foxglove and "
@@ -414,6 +428,11 @@ def build_plan(options: LaunchOptions, bin_dir: Path, cwd: Path,
                 '-p', f'task:={options.task}']
         log = run_dir / node_log(CONSOLE, continuation.session)
         commands.append(NodeCommand(CONSOLE, argv, log))
+    if options.foxglove:  # a viewer: its own parameters only
+        argv = [str(bin_dir / FOXGLOVE), '--ros-args', '-p',
+                f'port:={int(options.foxglove_port)}', '-p', f'task:={options.task}']
+        commands.append(NodeCommand(FOXGLOVE, argv,
+                                    run_dir / node_log(FOXGLOVE, continuation.session)))
     return LaunchPlan(options=options, run_dir=run_dir, seed=seed, params_files=all_files,
                       overrides=overrides, effective=effective, commands=commands,
                       continuation=continuation, bag_dir=bag_dir)

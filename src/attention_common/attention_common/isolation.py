@@ -9,9 +9,11 @@ sets ``ROS_AUTOMATIC_DISCOVERY_RANGE=SUBNET`` in their own shell and runs the no
 """
 
 import contextlib
+import ipaddress
 import itertools
 import os
 import random
+import socket
 from typing import Dict, Iterator, Mapping, Optional
 
 from domain_coordinator import domain_id as _coordinated_domain_id
@@ -52,3 +54,11 @@ def apply_to_this_process(domain_id: int) -> None:
     """Isolate this process (call before ``rclpy.init``)."""
     os.environ.update(isolated_environ(domain_id, base={}))
     os.environ.pop('ROS_LOCALHOST_ONLY', None)
+
+
+def is_loopback_host(host: str) -> bool:
+    """Tell whether a server bound to ``host`` is reachable from this machine only."""
+    try:
+        return ipaddress.ip_address(socket.gethostbyname(host)).is_loopback
+    except (OSError, ValueError):
+        return False

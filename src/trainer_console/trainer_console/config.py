@@ -1,8 +1,8 @@
 """The console's parameters, in one dataclass (each field is a ROS parameter of that name)."""
 
 from dataclasses import dataclass
-import ipaddress
-import socket
+
+from attention_common.isolation import is_loopback_host
 
 DEFAULT_PORT = 8080
 
@@ -45,7 +45,4 @@ class ConsoleConfig:
     @property
     def loopback(self) -> bool:
         """Tell whether ``host`` only ever reaches this machine."""
-        try:
-            return ipaddress.ip_address(socket.gethostbyname(self.host)).is_loopback
-        except (OSError, ValueError):
-            return False
+        return is_loopback_host(self.host)

@@ -1,0 +1,1 @@
+"""The graph live in Foxglove (the Foxglove WebSocket protocol, served by foxglove-sdk)."""
