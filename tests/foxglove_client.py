@@ -15,6 +15,8 @@ from typing import Dict, List, NamedTuple
 import aiohttp
 
 SUBPROTOCOL = 'foxglove.websocket.v1'
+SDK_SUBPROTOCOL = 'foxglove.sdk.v1'
+"""The same protocol under the name foxglove-sdk gives it (the Foxglove app offers both)."""
 MESSAGE_DATA = 0x01
 
 
@@ -29,8 +31,9 @@ class Received(NamedTuple):
 class FoxgloveClient:
     """One connection: ``channels`` by topic once advertised; ``received`` as subscribed."""
 
-    def __init__(self, url: str):
+    def __init__(self, url: str, protocols=(SUBPROTOCOL,)):
         self.url = url
+        self.protocols = tuple(protocols)
         self.server_info: dict = {}
         self.channels: Dict[str, dict] = {}
         self.received: List[Received] = []
@@ -40,7 +43,7 @@ class FoxgloveClient:
     async def __aenter__(self):
         self._session = aiohttp.ClientSession()
         try:
-            self._ws = await self._session.ws_connect(self.url, protocols=(SUBPROTOCOL,))
+            self._ws = await self._session.ws_connect(self.url, protocols=self.protocols)
         except BaseException:
             await self._session.close()
             raise

@@ -13,7 +13,8 @@ SRC = REPO / 'src'
 COLCON = Path(sys.executable).parent / 'colcon'
 NODES = ('env_node', 'feedback_node', 'saliency_node', 'tamer_node', 'trainer_console')
 EXECUTABLES = tuple((node, node) for node in NODES) + (
-    ('session_bag', 'session_recorder'), ('session_bag', 'attention_bag'))
+    ('session_bag', 'session_recorder'), ('session_bag', 'attention_bag'),
+    ('graph_viewer', 'graph_viewer'))
 """(package, executable): what ``ros2 run <package> <executable>`` starts."""
 
 
@@ -61,3 +62,9 @@ def test_every_package_is_indexed_with_its_manifest(install_base):
         marker = (install_base / package / 'share' / 'ament_index' / 'resource_index' /
                   'packages' / package)
         assert marker.is_file(), f'ament index marker {marker} missing'
+
+
+@pytest.mark.slow
+def test_the_foxglove_layout_is_installed_with_its_package(install_base):
+    layouts = list((install_base / 'graph_viewer').rglob('layouts/attention_graph.json'))
+    assert layouts, 'the layout file is not in the install tree'

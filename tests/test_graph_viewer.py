@@ -22,7 +22,7 @@ from foxglove_client import FoxgloveClient, SUBPROTOCOL
 from graph_viewer.bag_plots import main as plots_main, PLOTS_FILE
 from graph_viewer.config import ViewerConfig
 from graph_viewer.forwarded import FORWARDED, RateLimit
-from graph_viewer.layout import build_layout, LAYOUT_FILE, layout_json
+from graph_viewer.layout import LAYOUT_FILE, layout_json, layout_topics
 from graph_viewer.plots import (action_values_record, env_status_record, metrics_record,
                                 plot_topic, PLOTTED)
 from graph_viewer.subprotocol import LEGACY, rewrite_request, rewrite_response, SDK
@@ -103,26 +103,11 @@ def test_a_client_of_the_protocols_first_name_is_renamed_for_the_sdk_and_back():
     assert rewrite_response(answer) == answer.replace(SDK.encode(), LEGACY.encode())
 
 
-def _panel_topics(node) -> set:
-    """Every topic a layout's panels read (the part of a message path before its first '.')."""
-    found = set()
-    if isinstance(node, dict):
-        for key, value in node.items():
-            if key in ('imageTopic', 'topicPath', 'value') and isinstance(value, str):
-                found.add(value.split('.')[0])
-            else:
-                found |= _panel_topics(value)
-    elif isinstance(node, list):
-        for item in node:
-            found |= _panel_topics(item)
-    return found
-
-
 def test_the_shipped_layout_is_the_code_and_reads_only_served_channels():
     assert LAYOUT_FILE.read_text() == layout_json(), 'run graph_viewer_layout to refresh it'
     served = {'/' + topic.name for topic in FORWARDED}
     served |= {plot_topic('/' + name) for name in PLOTTED}
-    read = _panel_topics(json.loads(build_layout().to_json()))
+    read = layout_topics()
     assert {'/observation', '/saliency', '/feedback', '/plot/metrics'} <= read
     assert read <= served, read - served
 

@@ -15,18 +15,27 @@ Benchmark: the whole graph (four processes over DDS) against the same loop in on
    which dropped owed updates (0.30 updates per step in process against the graph's 0.62 in
    one run), and the comparison was with an agent that learned less.
 
+``--foxglove N``: instead, the cost of watching in Foxglove: the graph alone against the graph with
+``--foxglove`` and one client of the Foxglove protocol subscribed to every channel (the worst
+case: images, raw topics and plots), alternating, N pairs of ``--graph-steps`` (target: at most
+5 % slower).
+
 The graph's nodes use the executor ``ATTENTION_EXECUTOR`` names (``events`` unless set; see
 ``attention_common/executors.py``). Prints a markdown table (targets: graph >= 0.7 x
 in-process; observation-to-action p50 < 2 ms, p99 < 5 ms).
 """
 
 import argparse
+import asyncio
 import json
 import os
 from pathlib import Path
+import socket
+import statistics
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 
 from attention_common.executors import executor_name
@@ -39,15 +48,21 @@ P50_TARGET_MS = 2.0
 P99_TARGET_MS = 5.0
 
 
-def graph_run(steps: int, workdir: Path, pace_updates: float) -> dict:
-    run_dir = workdir / 'graph'
+FOXGLOVE_COST_TARGET = 0.05
+
+
+def graph_run(steps: int, workdir: Path, pace_updates: float, name: str = 'graph',
+              extra: tuple = (), viewer: str = '') -> dict:
+    """``viewer``: graph_viewer's parameters, as YAML lines (with ``--foxglove``)."""
+    run_dir = workdir / name
     params = workdir / 'bench_params.yaml'
-    params.write_text(f'tamer_node:\n  ros__parameters:\n    pace_updates: {pace_updates!r}\n')
+    params.write_text(f'tamer_node:\n  ros__parameters:\n    pace_updates: {pace_updates!r}\n'
+                      + (f'graph_viewer:\n  ros__parameters:\n{viewer}' if viewer else ''))
     started = time.monotonic()
     result = subprocess.run(
         [str(BIN / 'attention_train'), '--steps', str(steps), '--condition', 'language',
          '--trainer', 'thesis', '--quiet', '--run-dir', str(run_dir),
-         '--params-file', str(params)],
+         '--params-file', str(params), *extra],
         capture_output=True, text=True)
     wall = time.monotonic() - started
     if result.returncode != 0:
@@ -196,6 +211,106 @@ def table(graph: dict, local: dict) -> str:
     return '\n'.join(lines)
 
 
+class Watcher(threading.Thread):
+    """A Foxglove client on its own thread: connects when the bridge serves, takes everything."""
+
+    def __init__(self, port: int, channels: str, legacy: bool):
+        super().__init__(daemon=True)
+        self.channels, self.legacy = channels, legacy
+        self.url = f'ws://127.0.0.1:{port}'
+        self.stop = threading.Event()
+        self.received = 0
+        self.by_topic = {}
+
+    def run(self) -> None:
+        asyncio.run(self._watch())
+
+    async def _watch(self) -> None:
+        sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+        from foxglove_client import FoxgloveClient, SDK_SUBPROTOCOL, SUBPROTOCOL
+        protocols = (SUBPROTOCOL,) if self.legacy else (SDK_SUBPROTOCOL, SUBPROTOCOL)
+        while not self.stop.is_set():
+            try:
+                async with FoxgloveClient(self.url, protocols) as client:
+                    await client.read_for(1.0)  # the advertisements
+                    await client.subscribe(self._chosen(client.channels))
+                    while not self.stop.is_set():
+                        await client.read_for(0.5)
+                        for message in client.received:
+                            self.by_topic[message.topic] = self.by_topic.get(message.topic, 0) + 1
+                        self.received += len(client.received)
+                        client.received.clear()
+                return
+            except (OSError, asyncio.TimeoutError):  # not serving yet (or gone: then stopped)
+                await asyncio.sleep(0.2)
+
+    def _chosen(self, advertised) -> list:
+        if self.channels == 'all':
+            return sorted(advertised)
+        if self.channels == 'layout':
+            from graph_viewer.layout import layout_topics
+            return sorted(set(layout_topics()) & set(advertised))
+        return []
+
+
+def _free_port() -> int:
+    with socket.socket() as probe:
+        probe.bind(('127.0.0.1', 0))
+        return probe.getsockname()[1]
+
+
+def foxglove_cost(pairs: int, steps: int, workdir: Path, pace_updates: float,
+                  channels: str, legacy: bool, relay: bool) -> int:
+    """Run the graph alone and watched in Foxglove, alternating; print both and the cost."""
+    viewer = '' if relay else '    legacy_subprotocol: false\n'
+    alone, watched, received = [], [], []
+    cpu = {'graph alone': [], 'graph watched': [], 'graph_viewer': [], 'the client': []}
+    for pair in range(pairs):
+        run = graph_run(steps, workdir, pace_updates, f'alone{pair}')
+        alone.append(run['steps_per_s'])
+        cpu['graph alone'].append(sum(run['cpu_ms_per_step'].values()))
+        port = _free_port()
+        watcher = Watcher(port, channels, legacy)
+        client_cpu = time.process_time()  # this process: the client's thread (the rest waits)
+        watcher.start()
+        run = graph_run(steps, workdir, pace_updates, f'watched{pair}',
+                        ('--foxglove', '--foxglove-port', str(port)), viewer=viewer)
+        watcher.stop.set()
+        watcher.join(10.0)
+        cpu['the client'].append(1000.0 * (time.process_time() - client_cpu) / run['steps'])
+        nodes = dict(run['cpu_ms_per_step'])
+        cpu['graph_viewer'].append(nodes.pop('graph_viewer', 0.0))
+        cpu['graph watched'].append(sum(nodes.values()))
+        watched.append(run['steps_per_s'])
+        received.append(watcher.received)
+        print(f'pair {pair}: alone {alone[-1]:.1f} steps/s, watched {watched[-1]:.1f} steps/s '
+              f'({watcher.received} messages to the client: '
+              f'{json.dumps(dict(sorted(watcher.by_topic.items())))})', flush=True)
+    cost = 1.0 - statistics.mean(watched) / statistics.mean(alone)
+    verdict = 'ok' if cost <= FOXGLOVE_COST_TARGET else 'MISSED'
+    print(f'\n| lockstep, {steps} steps x {pairs} | steps/s (mean; runs) |\n|---|---|')
+    print(f'| graph alone | {statistics.mean(alone):.1f} '
+          f'({", ".join(f"{v:.1f}" for v in alone)}) |')
+    client = ('foxglove.websocket.v1 only' if legacy else 'as Foxglove') + (
+        ', through the relay' if relay else ', no relay')
+    print(f'| with --foxglove, one client ({client}) on {channels} channels | '
+          f'{statistics.mean(watched):.1f} '
+          f'({", ".join(f"{v:.1f}" for v in watched)}) |')
+    print('\nCPU time per step (ms, mean of the runs; steps/s on 2 busy cores swing 10-20 % '
+          'from run to run, CPU per step much less):')
+    for name, values in cpu.items():
+        print(f'- {name}: {statistics.mean(values):.2f} ({", ".join(f"{v:.2f}" for v in values)})')
+    extra = (statistics.mean(cpu['graph watched']) + statistics.mean(cpu['graph_viewer'])
+             - statistics.mean(cpu['graph alone']))
+    print(f'- the bridge costs the graph {extra:.2f} ms of CPU per step, '
+          f'{100 * extra / statistics.mean(cpu["graph alone"]):.1f} % of its own '
+          f'(the client, another {statistics.mean(cpu["the client"]):.2f} ms: Foxglove runs '
+          'where you choose)')
+    print(f'\n| cost of watching | {100 * cost:.1f} % (target <= '
+          f'{100 * FOXGLOVE_COST_TARGET:g} %: {verdict}) |')
+    return 0
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[1])
     parser.add_argument('--graph-steps', type=int, default=10_000)
@@ -203,9 +318,26 @@ def main() -> int:
     parser.add_argument('--pace-updates', type=float, default=TamerConfig.pace_updates,
                         help="tamer_node's pace_updates for both (0: the actor never waits "
                              'for its learner, which then drops owed updates)')
+    parser.add_argument('--foxglove', type=int, default=0, metavar='PAIRS',
+                        help='measure the cost of watching in Foxglove instead: PAIRS runs '
+                             'alone and watched, alternating')
+    parser.add_argument('--foxglove-channels', choices=('all', 'layout', 'none'), default='layout',
+                        help='with --foxglove, what the client subscribes to (default: the '
+                             "shipped layout's channels, as Foxglove with it open does)")
+    parser.add_argument('--foxglove-legacy', action='store_true',
+                        help='the client offers only foxglove.websocket.v1 (old Lichtblick: '
+                             "through the bridge's relay) instead of both names, as Foxglove")
+    parser.add_argument('--foxglove-no-relay', action='store_true',
+                        help="graph_viewer's legacy_subprotocol false: the SDK serves the port "
+                             'itself (clients of foxglove.sdk.v1 only)')
     args = parser.parse_args()
     with tempfile.TemporaryDirectory(prefix='bench_graph_') as tmp:
         workdir = Path(tmp)
+        if args.foxglove:
+            print(f'Machine: {machine()}; executor {executor_name()}')
+            return foxglove_cost(args.foxglove, args.graph_steps, workdir, args.pace_updates,
+                                 args.foxglove_channels, args.foxglove_legacy,
+                                 not args.foxglove_no_relay)
         load_before = os.getloadavg()[0]
         local = in_process_run(args.inprocess_steps, workdir, args.pace_updates)
         graph = graph_run(args.graph_steps, workdir, args.pace_updates)

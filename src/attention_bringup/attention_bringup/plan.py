@@ -428,9 +428,11 @@ def build_plan(options: LaunchOptions, bin_dir: Path, cwd: Path,
                 '-p', f'task:={options.task}']
         log = run_dir / node_log(CONSOLE, continuation.session)
         commands.append(NodeCommand(CONSOLE, argv, log))
-    if options.foxglove:  # a viewer: its own parameters only
-        argv = [str(bin_dir / FOXGLOVE), '--ros-args', '-p',
-                f'port:={int(options.foxglove_port)}', '-p', f'task:={options.task}']
+    if options.foxglove:  # a viewer: not the graph's files, but the user's (a graph_viewer: part)
+        argv = [str(bin_dir / FOXGLOVE), '--ros-args']
+        for path in options.params_files:
+            argv += ['--params-file', str((cwd / path).resolve())]
+        argv += ['-p', f'port:={int(options.foxglove_port)}', '-p', f'task:={options.task}']
         commands.append(NodeCommand(FOXGLOVE, argv,
                                     run_dir / node_log(FOXGLOVE, continuation.session)))
     return LaunchPlan(options=options, run_dir=run_dir, seed=seed, params_files=all_files,

@@ -23,6 +23,11 @@ class ViewerConfig:
     max_image_rate_hz: float = 30.0
     """Most frames per second forwarded per image topic (a lockstep run steps at 200/s; 0: all).
     Real time (15 Hz) is below it: every frame goes."""
+    max_step_rate_hz: float = 30.0
+    """Most per-step messages a second forwarded per topic (status, action, H: forwarded.PER_STEP;
+    0: all). Feedback, utterances, receipts, credit and metrics always go whole."""
+    poll_hz: float = 60.0
+    """How often the watched topics are read (a frame waits at most 1/poll_hz to be sent)."""
     task: str = 'montezuma'
     """The task taught: its milestones (Room 1's critical positions, DoorKey's sub-goals) in
     the env status channel."""
@@ -37,8 +42,11 @@ class ViewerConfig:
         """Raise ValueError naming the first impossible value."""
         if not 0 <= self.port <= 65535:
             raise ValueError(f'port must be 0..65535, got {self.port}')
-        if not self.max_image_rate_hz >= 0:
-            raise ValueError(f'max_image_rate_hz must be >= 0, got {self.max_image_rate_hz}')
+        for name in ('max_image_rate_hz', 'max_step_rate_hz'):
+            if not getattr(self, name) >= 0:
+                raise ValueError(f'{name} must be >= 0, got {getattr(self, name)}')
+        if not self.poll_hz > 0:
+            raise ValueError(f'poll_hz must be > 0, got {self.poll_hz}')
         if self.message_backlog < 1:
             raise ValueError(f'message_backlog must be at least 1, got {self.message_backlog}')
         if not self.loopback and not self.allow_remote:

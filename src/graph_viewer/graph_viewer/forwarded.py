@@ -11,7 +11,7 @@ from typing import Optional, Tuple
 
 from attention_common import qos, topics
 from diagnostic_msgs.msg import DiagnosticArray
-from rclpy.qos import QoSProfile
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from session_bag.recorded import RECORDED, RecordedTopic, type_name
 from session_bag.schema import definition
 
@@ -25,8 +25,18 @@ ENCODING = 'cdr'
 SCHEMA_ENCODING = 'ros2msg'
 
 
+PER_STEP = (topics.ACTION, topics.ACTION_TAKEN, topics.AGENT_POSITION, topics.ENV_STATUS,
+            topics.ACTION_VALUES)
+"""One message per agent step: a lockstep run sends 200 a second, more than a plot can show.
+A person's words, the learner's receipts and credit, and metrics are never thinned."""
+
+
 def is_image(topic: RecordedTopic) -> bool:
     return type_name(topic.msg_type) == 'sensor_msgs/msg/Image'
+
+
+def is_per_step(topic: RecordedTopic) -> bool:
+    return topic.name in PER_STEP
 
 
 def schema_of(topic: RecordedTopic) -> Tuple[str, bytes]:
@@ -35,16 +45,22 @@ def schema_of(topic: RecordedTopic) -> Tuple[str, bytes]:
     return name, definition(name).text.encode()
 
 
+NEWEST = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
+                    reliability=ReliabilityPolicy.BEST_EFFORT,
+                    durability=DurabilityPolicy.VOLATILE)
+"""A reader that holds the newest message only (DDS drops the older: nobody takes them)."""
+
+
 def viewer_qos(topic: RecordedTopic) -> QoSProfile:
     """
     Return the bridge's QoS on ``topic``: a viewer never slows the graph.
 
-    Images best effort (a lost frame is a frame not drawn; a reliable reader could hold a
-    writer's history); a person's words and the learner's answers to them reliable and whole,
-    as every reader of them is; step data and metrics reliable, as designed.
+    Images and per-step topics: the newest only, best effort (a frame not drawn is no loss,
+    and a reliable reader could hold a writer's history); a person's words, the learner's
+    receipts and credit, and metrics reliable and whole, as their publishers offer them.
     """
-    if is_image(topic):
-        return qos.WATCH_IMAGES
+    if is_image(topic) or is_per_step(topic):
+        return NEWEST
     return topic.designed_qos
 
 
@@ -56,6 +72,10 @@ class RateLimit:
             raise ValueError(f'rate_hz must be > 0, got {rate_hz}')
         self.period_s = 1.0 / rate_hz
         self._last: Optional[float] = None
+
+    def due(self, now_s: float) -> bool:
+        """Tell whether a message at ``now_s`` would go (without counting it)."""
+        return self._last is None or now_s - self._last >= self.period_s
 
     def allow(self, now_s: float) -> bool:
         """Tell whether a message at ``now_s`` (monotonic seconds) goes; count it if it does."""

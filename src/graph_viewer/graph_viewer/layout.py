@@ -9,6 +9,9 @@ which a test keeps equal to this code). In Foxglove: Layouts, Import from file. 
   (``/feedback_stamped``), H of the action taken and the best H at each step;
 - the learning curve: the learner's loss terms and updates per step, the milestone reached;
 - the env's status (step, episode, lives, milestone) and the last utterance, as messages.
+
+Every other channel (the credit of each feedback, receipts, actions) is one click away in
+Foxglove's topic list; the layout leaves them out so that watching costs the graph little.
 """
 
 import argparse
@@ -69,9 +72,6 @@ def build_layout() -> fl.Layout:
         fl.TabItem(title='utterance', content=fl.RawMessagesPanel(
             title='last utterance',
             config=fl.RawMessagesConfig(topic_path=_topic(topics.UTTERANCE)))),
-        fl.TabItem(title='credit', content=fl.RawMessagesPanel(
-            title='last feedback credit',
-            config=fl.RawMessagesConfig(topic_path=_topic(topics.FEEDBACK_CREDIT)))),
     ])
     left = fl.SplitContainer(direction='column', items=[
         fl.SplitItem(proportion=1, content=_image('frame', topics.OBSERVATION)),
@@ -84,6 +84,25 @@ def build_layout() -> fl.Layout:
     ])
     return fl.Layout(content=fl.SplitContainer(direction='row', items=[
         fl.SplitItem(proportion=2, content=left), fl.SplitItem(proportion=3, content=right)]))
+
+
+def layout_topics() -> set:
+    """Return every channel the layout's panels read (a message path's part before its '.')."""
+    found = set()
+
+    def visit(node) -> None:
+        if isinstance(node, dict):
+            for key, value in node.items():
+                if key in ('imageTopic', 'topicPath', 'value') and isinstance(value, str):
+                    found.add(value.split('.')[0])
+                else:
+                    visit(value)
+        elif isinstance(node, list):
+            for item in node:
+                visit(item)
+
+    visit(json.loads(build_layout().to_json()))
+    return found
 
 
 def layout_json() -> str:

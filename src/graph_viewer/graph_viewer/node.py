@@ -1,21 +1,25 @@
 """
 graph_viewer: the running graph, live in Foxglove (a thin rclpy shell on foxglove-sdk's server).
 
-Serves the Foxglove WebSocket protocol (``foxglove.websocket.v1``) on 127.0.0.1:8765: every
-topic a session bag holds, and ``action_values``, as the publisher's CDR bytes under the
-message's ROS 2 definition (``forwarded.py``), with DDS's receive time as the message's time,
-as the bag has it; and the DiagnosticArrays as plottable JSON (``plots.py``). Subscriptions
-are raw: a message is never decoded unless a client watches its plot channel, and nothing is
-sent on a channel nobody watches. Read-only: a client cannot publish, call or set anything.
+Serves the Foxglove WebSocket protocol on 127.0.0.1:8765: every topic a session bag holds, and
+``action_values``, as the publisher's CDR bytes under the message's ROS 2 definition
+(``forwarded.py``), with DDS's receive time as the message's time, as the bag has it; and the
+DiagnosticArrays as plottable JSON (``plots.py``). Read-only: a client cannot publish, call or
+set anything.
+
+A viewer must not slow the graph it shows (a callback per message cost a lockstep run 25 % of
+its speed, even with nobody watching). So a topic is subscribed only while a client watches it
+(its raw or its plot channel), on a node of its own that no executor spins, and a timer takes
+what came (``poll_hz``): per-step topics and images through a depth-1 reader, at most
+``max_step_rate_hz`` / ``max_image_rate_hz`` (the newest), so DDS drops the rest and Python
+never sees them; a person's words, receipts, credit and metrics whole, in order.
 """
 
-import functools
 import threading
 import time
 from typing import Dict, Optional
 from urllib.parse import quote
 
-from attention_common.executors import with_message_info
 from attention_common.node_main import Closing, run_node, StartupError
 from attention_common.parameters import declare_dataclass
 from attention_common.stamps import stamp_to_ns
@@ -24,14 +28,18 @@ from attention_tasks.task import load_task, UnknownTask
 from diagnostic_msgs.msg import DiagnosticArray
 import foxglove
 from graph_viewer.config import ViewerConfig
-from graph_viewer.forwarded import (ENCODING, FORWARDED, is_image, RateLimit, SCHEMA_ENCODING,
-                                    schema_of, viewer_qos)
+from graph_viewer.forwarded import (ENCODING, FORWARDED, is_image, is_per_step, RateLimit,
+                                    SCHEMA_ENCODING, schema_of, viewer_qos)
 from graph_viewer.plots import encode, plot_topic, PLOTTED, record_of, SCHEMAS
 from graph_viewer.subprotocol import Relay
+import rclpy
+from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.serialization import deserialize_message
 
 LOG_THROTTLE_S = 10.0
+MAX_TAKES_PER_POLL = 1000
+"""A whole topic's backlog is taken each poll, up to this (the rest at the next)."""
 
 
 class Watchers:
@@ -54,9 +62,10 @@ class Watchers:
 
 
 class Forward:
-    """One graph topic: its raw channel, its plot channel if it has one, its rate limit."""
+    """One graph topic: its channels, its reader while watched, and its rate limit."""
 
     def __init__(self, topic, name: str, context, limit: Optional[RateLimit]):
+        self.topic, self.name, self.limit = topic, name, limit
         self.kind = topic.name if topic.name in PLOTTED else None
         schema_name, definition = schema_of(topic)
         self.raw = foxglove.Channel(
@@ -66,7 +75,8 @@ class Forward:
         if self.kind is not None:
             self.plot = foxglove.Channel(plot_topic(name), schema=SCHEMAS[self.kind],
                                          context=context)
-        self.limit = limit
+        self.reader = None
+        """The subscription on the viewer's reading node while a client watches."""
 
 
 class GraphViewerNode(Closing, Node):
@@ -86,16 +96,17 @@ class GraphViewerNode(Closing, Node):
         self.watchers = Watchers()
         self.forwards = []
         for topic in FORWARDED:
-            holder = []
-            subscription = self.create_subscription(
-                topic.msg_type, topic.name,
-                with_message_info(functools.partial(self._on_message, holder)),
-                viewer_qos(topic), raw=True)
-            limit = None
-            if is_image(topic) and self.config.max_image_rate_hz > 0:
-                limit = RateLimit(self.config.max_image_rate_hz)
-            holder.append(Forward(topic, subscription.topic_name, self.foxglove, limit))
-            self.forwards.append(holder[0])
+            rate_hz = (self.config.max_image_rate_hz if is_image(topic) else
+                       self.config.max_step_rate_hz if is_per_step(topic) else 0.0)
+            limit = RateLimit(rate_hz) if rate_hz > 0 else None
+            self.forwards.append(Forward(topic, self.resolve_topic_name(topic.name),
+                                         self.foxglove, limit))
+        # Never spun: its readers wake nobody; the poll timer takes what they hold.
+        self.readers = rclpy.create_node(
+            self.get_name() + '_readers', namespace=self.get_namespace(), context=self.context,
+            use_global_arguments=False, start_parameter_services=False, enable_rosout=False)
+        self.create_timer(1.0 / self.config.poll_hz, self._poll,
+                          clock=Clock(clock_type=ClockType.STEADY_TIME))
         legacy = self.config.legacy_subprotocol
         self.relay = None
         try:
@@ -117,11 +128,35 @@ class GraphViewerNode(Closing, Node):
             f'connection, Foxglove WebSocket, this URL; or https://app.foxglove.dev/?ds='
             f'foxglove-websocket&ds.url={quote(self.url, safe="")})')
 
-    def _on_message(self, holder: list, data: bytes, info: dict) -> None:
-        forward: Forward = holder[0]
+    def _poll(self) -> None:
+        now = time.monotonic()
+        for forward in self.forwards:
+            watched = self.watchers.watched(forward.raw.id()) or (
+                forward.plot is not None and self.watchers.watched(forward.plot.id()))
+            if watched and forward.reader is None:
+                forward.reader = self.readers.create_subscription(
+                    forward.topic.msg_type, forward.name, _never_called,
+                    viewer_qos(forward.topic), raw=True)
+            elif not watched and forward.reader is not None:
+                self.readers.destroy_subscription(forward.reader)
+                forward.reader = None
+            if forward.reader is None:
+                continue
+            if forward.limit is not None:  # a depth-1 reader: its newest, if it is time
+                if forward.limit.due(now):
+                    taken = _take(forward.reader)
+                    if taken is not None:
+                        forward.limit.allow(now)
+                        self._forward(forward, *taken)
+                continue
+            for _ in range(MAX_TAKES_PER_POLL):
+                taken = _take(forward.reader)
+                if taken is None:
+                    break
+                self._forward(forward, *taken)
+
+    def _forward(self, forward: Forward, data: bytes, info: dict) -> None:
         log_time = info.get('received_timestamp') or time.time_ns()
-        if forward.limit is not None and not forward.limit.allow(time.monotonic()):
-            return
         if self.watchers.watched(forward.raw.id()):
             forward.raw.log(data, log_time=log_time)
         if forward.plot is not None and self.watchers.watched(forward.plot.id()):
@@ -132,7 +167,7 @@ class GraphViewerNode(Closing, Node):
             except Exception as error:  # noqa: B902 - a malformed message: never the node
                 self.errors += 1
                 self.get_logger().error(
-                    f'{forward.raw.topic()}: not plotted ({type(error).__name__}: {error}; '
+                    f'{forward.name}: not plotted ({type(error).__name__}: {error}; '
                     f'{self.errors} so far)', throttle_duration_sec=LOG_THROTTLE_S)
                 return
             forward.plot.log(encode(record), log_time=log_time)
@@ -143,6 +178,18 @@ class GraphViewerNode(Closing, Node):
             self.relay.stop()
         if getattr(self, 'server', None) is not None:
             self.server.stop()
+        if getattr(self, 'readers', None) is not None:
+            self.readers.destroy_node()
+
+
+def _never_called(msg) -> None:
+    """Do nothing: the readers' node is never spun; the poll takes their messages."""
+
+
+def _take(reader):
+    """Return (CDR bytes, info) of the reader's oldest message, or None."""
+    with reader.handle:
+        return reader.handle.take_message(reader.msg_type, True)
 
 
 def main(args=None) -> int:
