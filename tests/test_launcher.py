@@ -348,6 +348,31 @@ def test_fetch_runs_on_every_node_by_name_and_says_each_mission(tmp_path):
 
 
 @pytest.mark.topics
+def test_language_input_acts_on_each_steps_saliency_image(tmp_path):
+    """--condition language_input (issue 25): H reads the frame and its saliency image."""
+    run_dir, steps = tmp_path / 'run', 120
+    result = subprocess.run(
+        [LAUNCHER, '--task', 'fetch', '--condition', 'language_input', '--steps', str(steps),
+         '--seed', '5', '--run-dir', str(run_dir), '--quiet'],
+        capture_output=True, text=True, timeout=240)
+    assert result.returncode == 0, result.stderr[-4000:]
+    summary = _read_json(run_dir / 'summary.json')
+    assert summary['status'] == 'completed' and summary['steps'] == steps
+    params = yaml.safe_load((run_dir / 'params.yaml').read_text())
+    assert params['tamer_node']['ros__parameters']['input_image'] == 'both'
+    assert 'input_image both' in (run_dir / 'logs' / 'tamer_node.log').read_text()
+    metrics = summary['metrics']
+    # Each step was answered once its saliency image came (lockstep waits for it); a step
+    # answered on its observation alone would be counted here.
+    assert metrics['act/count'] >= 0.95 * steps
+    assert metrics['act/fallback_observation'] <= 0.05 * steps
+    # The samples learned from carry both images (no L2 term: alpha 0).
+    paired = metrics['pairing/with_saliency'] + metrics['pairing/without_saliency']
+    assert metrics['pairing/with_saliency'] >= 0.9 * paired > 0
+    assert metrics['train/l2_updates'] == 0
+
+
+@pytest.mark.topics
 def test_a_person_teaches_doorkey_over_topics(tmp_path, probe):
     """--no-synthetic --realtime: what a person sends with ros2 topic pub reaches the log."""
     from attention_common import qos, topics

@@ -34,6 +34,7 @@ CONDITION_TABLE = {
     'blind_saliency': ('blind_agent', False, 10.0, 1e-4, 'observation'),
     'language_every_step': ('language', True, 0.0, 1e-4, 'observation'),
     'hidden_agent': ('hidden_agent', False, 10.0, 0.0, 'saliency'),
+    'language_input': ('language', False, 10.0, 0.0, 'both'),  # issue 25, beside the six
 }
 
 
@@ -483,6 +484,22 @@ def test_task_doorkey_reaches_every_node_with_its_files_and_rate(tmp_path):
     assert 'task:=doorkey' in console.argv
     assert 'doorkey-language-seed3' in _plan(tmp_path, task='doorkey', seed=3).run_dir.name
     assert parse_options(['--task', 'doorkey']).task == 'doorkey'
+
+
+def test_foxglove_adds_the_bridge_with_its_port_and_the_task(tmp_path):
+    assert not any(c.name == 'graph_viewer' for c in _plan(tmp_path, seed=3).commands)
+    plan = _plan(tmp_path, task='doorkey', foxglove=True, foxglove_port=9001, seed=3)
+    bridge = next(c for c in plan.commands if c.name == 'graph_viewer')
+    assert bridge.argv[0].endswith('/graph_viewer')
+    assert 'port:=9001' in bridge.argv and 'task:=doorkey' in bridge.argv
+    mine = tmp_path / 'mine.yaml'
+    mine.write_text('graph_viewer:\n  ros__parameters:\n    legacy_subprotocol: false\n')
+    plan = _plan(tmp_path, foxglove=True, params_files=[str(mine)])
+    bridge = next(c for c in plan.commands if c.name == 'graph_viewer')
+    assert bridge.argv[bridge.argv.index('--params-file') + 1] == str(mine)  # the user's only
+    assert bridge.argv.count('--params-file') == 1
+    options = parse_options(['--foxglove'])
+    assert options.foxglove and options.foxglove_port == 8765  # Foxglove's own default
 
 
 def test_room_one_runs_keep_their_parameter_files_and_names(tmp_path):

@@ -218,6 +218,26 @@ def test_saliency_input_acts_on_the_saliency_image(agents):
     assert torch.equal(sample.companion, agent.actor.features(record.observation))
 
 
+def test_both_inputs_act_and_learn_on_the_frame_and_its_saliency_image(agents):
+    agent = agents(input_image='both', alpha=0.0)
+    assert agent.on_observation(stamp(0), FRAMES[0]) is None  # it waits for the saliency image
+    assert agent.on_saliency(stamp(0), FRAMES[1]) is not None
+    agent.on_feedback(1.0, 'stamped', stamp(0))
+    assert processed(agent, 1)
+    [sample] = agent.buffer.samples()
+    record = agent.history.get(stamp(0))
+    assert torch.equal(sample.state, torch.cat([agent.actor.features(record.observation),
+                                                agent.actor.features(record.saliency)]))
+    assert sample.companion is None  # the saliency image is in H's input, not an L2 term
+    # A step whose saliency image never comes is answered on its observation, standing in.
+    agent.on_observation(stamp(1), FRAMES[2])
+    time.sleep(agent.config.saliency_timeout_s + 0.05)
+    [(answered, _)] = agent.acting.act_overdue()
+    assert answered == stamp(1)
+    with pytest.raises(ValueError, match='fine_tune_encoder'):
+        TamerConfig(input_image='both', fine_tune_encoder=True).validate()
+
+
 @pytest.mark.parametrize('fine_tune', [False, True])
 def test_a_frozen_encoder_learns_on_the_features_the_actor_computed(agents, fine_tune):
     agent = agents(alpha=1e-4, fine_tune_encoder=fine_tune)

@@ -252,6 +252,35 @@ def test_cached_features_give_the_same_h_as_the_image_path(route_frames):
                               atol=1e-6)
 
 
+def _taught_by_the_saliency_image(route_frames, streams):
+    """Train H where one frame's right action is named only by its saliency image (A: 0, B: 1)."""
+    torch.manual_seed(0)
+    model = HModel(16, encoder=load_encoder(DEFAULT_ENCODER), num_actions=4, streams=streams)
+    learner = Learner(model, 3e-3, alpha=0.0, max_grad_norm=1.0)
+    with torch.no_grad():
+        frame, named_a, named_b = model.features(to_input(route_frames[[0, 5, 9]]))
+    contexts = [torch.cat([frame, named_a]), torch.cat([frame, named_b])]
+    if streams == 1:
+        contexts = [frame, frame]  # H sees the frame only: the words never reach it
+    states, actions, h = [], [], []
+    for context, right in ((0, 0), (1, 1)):
+        for action in range(4):
+            states.append(contexts[context])
+            actions.append(action)
+            h.append(1.0 if action == right else -1.0)
+    for _ in range(300):
+        learner.train_step(make_batch(torch.stack(states), actions=actions, h=h))
+    with torch.no_grad():
+        return [int(model.from_features(c.unsqueeze(0)).argmax()) for c in contexts]
+
+
+def test_with_both_images_h_acts_on_what_the_saliency_image_names(route_frames):
+    """input_image both (language_input): the same frame, two utterances, two right actions."""
+    assert _taught_by_the_saliency_image(route_frames, streams=2) == [0, 1]
+    first, second = _taught_by_the_saliency_image(route_frames, streams=1)
+    assert first == second  # on the frame alone the two cases are one state
+
+
 # Credit assignment on hand-made timelines.
 @pytest.mark.parametrize('span,feedback_at,expected', [
     ((0.0, 1.0), 1.0, 0.8 / 3.8),            # the window [-3, 0.8] covers [0, 0.8]

@@ -17,9 +17,12 @@ CONDITIONS_DIR = 'conditions'
 TASKS_DIR = 'tasks'
 
 # The study conditions (issue 7 and the thesis, chapter 5), one parameter file each.
-CONDITIONS = (
+THESIS_CONDITIONS = (
     'vanilla', 'language', 'blind_obs', 'blind_saliency', 'language_every_step', 'hidden_agent',
 )
+CONDITIONS = THESIS_CONDITIONS + ('language_input',)
+"""Every condition a run can take: the thesis's six, then those added beside them
+(language_input: H sees the saliency image beside the frame when it acts, issue 25)."""
 DEFAULT_CONDITION = 'language'
 
 

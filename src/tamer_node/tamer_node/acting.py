@@ -20,7 +20,7 @@ from attention_common.feedback import FEEDBACK_RANGE
 from attention_common.stamps import NS_PER_S, StampGuard
 from attention_tasks.task import load_task
 import numpy as np
-from tamer_node.config import TamerConfig
+from tamer_node.config import TamerConfig, WAITS_FOR_SALIENCY
 from tamer_node.history import holds, StepHistory
 from tamer_node.model import HModel, preprocess, to_input
 from tamer_node.persistence import (
@@ -187,7 +187,7 @@ class ActingPath:
         self.worker.tick(stamp)  # simulation time for the minibatch schedule
         record = self.history.put_image('observation', stamp, image)
         self.journal.append(KIND_OBSERVATION, stamp, image=image)
-        if self.config.input_image == 'saliency':
+        if self.config.input_image in WAITS_FOR_SALIENCY:
             self.worker.wake()
             if record.action is None and record.saliency is None:
                 with self._awaiting_lock:  # answered by on_saliency or act_overdue
@@ -209,7 +209,7 @@ class ActingPath:
         record = self.history.put_image('saliency', stamp, image)
         self.journal.append(KIND_SALIENCY, stamp, image=image)
         self.worker.wake()
-        if self.config.input_image != 'saliency':
+        if self.config.input_image not in WAITS_FOR_SALIENCY:
             return None
         with self._awaiting_lock:
             self._awaiting.pop(stamp, None)
@@ -241,10 +241,11 @@ class ActingPath:
         """
         Answer the observations whose saliency image is ``saliency_timeout_s`` (wall) late.
 
-        ``input_image: saliency`` only: such a step is answered by acting on its observation
-        (counted in ``act/fallback_observation``; the step is not learned from, as the learner
-        learns on saliency images only). Returns [(stamp, action)] to publish; the node calls
-        it on a timer.
+        ``input_image`` saliency or both: such a step is answered by acting on its observation
+        (counted in ``act/fallback_observation``; with ``saliency`` the step is not learned from,
+        as the learner learns on saliency images only; with ``both`` the observation stands in
+        for its saliency image, in acting and in learning). Returns [(stamp, action)] to
+        publish; the node calls it on a timer.
         """
         now = time.monotonic() if now is None else now
         due = []
@@ -267,6 +268,25 @@ class ActingPath:
             answers.append((stamp, action))
         return answers
 
+    def both_features(self, record) -> torch.Tensor:
+        """
+        Return the step's (2240,) input with ``input_image: both``: frame, saliency features.
+
+        Each image's features are computed once and kept in the step's record (the learner
+        trains on them); a step without a saliency image has its observation stand in for it.
+        """
+        parts = []
+        for kind in ('observation', 'saliency'):
+            image = record.image(kind)
+            if image is None:
+                kind, image = 'observation', record.observation
+            features = record.features(kind)
+            if features is None:
+                features = self.actor.features(image)
+                self.history.put_features(kind, record.stamp, features)
+            parts.append(features)
+        return torch.cat(parts)
+
     def _preprocess(self, kind: str, rgb: np.ndarray) -> torch.Tensor:
         try:
             return torch.from_numpy(preprocess(rgb, self._frame_shape))
@@ -285,15 +305,17 @@ class ActingPath:
                 started += waited  # act latency is the agent's own time
         self.actor.refresh(self.slot)
         kind = self.config.input_image if image is None else 'observation'
-        image = record.image(kind) if image is None else image
         held = self._held if holds(self._decision, record.stamp,
                                    self.config.decision_period_s) else None
-        if self.actor.model.freeze_encoder:
+        if self.config.input_image == 'both':  # the frame's features, then its saliency's
+            values = self.actor.values_on_features(self.both_features(record))
+        elif self.actor.model.freeze_encoder:
+            image = record.image(kind) if image is None else image
             features = self.actor.features(image)  # encoded once: acting and learning share it
             self.history.put_features(kind, record.stamp, features)
             values = self.actor.values_on_features(features)
         else:
-            values = self.actor.predict(image)
+            values = self.actor.predict(record.image(kind) if image is None else image)
         action = held if held is not None else self.actor.choose(values)
         if held is not None:
             self.counters['act/held'] += 1

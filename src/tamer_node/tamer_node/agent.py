@@ -104,7 +104,8 @@ class TamerAgent:
         model = HModel(config.head_hidden, freeze_encoder=not config.fine_tune_encoder,
                        encoder=encoder, num_actions=self.task.num_actions,
                        parts=(joystick_parts(self.task.joy_actions)
-                              if config.share_action_parts else None))
+                              if config.share_action_parts else None),
+                       streams=2 if config.input_image == 'both' else 1)
         self.learner = Learner(model, config.learning_rate, config.alpha, config.max_grad_norm,
                                config.credit_loss)
         self.actor = ActingModel(model, config.greedy_margin, config.seed,
@@ -112,7 +113,8 @@ class TamerAgent:
         self.slot = SnapshotSlot()
         # A frozen encoder: the buffer holds each image's features (computed once, by the
         # actor for the image it acts on), so an update runs the small head only.
-        self.buffer = (FeedbackBuffer(config.buffer_capacity, (FEATURE_SIZE,), np.float32)
+        self.buffer = (FeedbackBuffer(config.buffer_capacity, (FEATURE_SIZE * model.streams,),
+                                      np.float32)
                        if model.freeze_encoder else FeedbackBuffer(config.buffer_capacity))
         self.history = StepHistory(config.history_steps)
         steps_dir = self.run_dir / STEPS_DIR

@@ -9,7 +9,10 @@ from attention_tasks.task import DEFAULT_TASK, load_task
 
 CREDIT_MODES = ('step', 'window')
 CREDIT_LOSSES = ('each', 'mixture')
-INPUT_IMAGES = ('observation', 'saliency')
+INPUT_IMAGES = ('observation', 'saliency', 'both')
+"""'both': H sees the step's frame and its saliency image side by side (language_input)."""
+WAITS_FOR_SALIENCY = ('saliency', 'both')
+"""The inputs that need a step's saliency image before the agent acts on it."""
 UPDATE_CLOCKS = ('sim', 'wall')
 SYNC_MODES = ('off', 'grouped', 'every')
 
@@ -81,7 +84,9 @@ class TamerConfig:
     fine_tune_encoder: bool = False
     """Train the pretrained encoder too (Deep TAMER keeps it frozen)."""
     input_image: str = 'observation'
-    """Image the agent acts and learns on: 'observation' or the step's 'saliency' image."""
+    """Image the agent acts and learns on: 'observation', the step's 'saliency' image, or
+    'both' (the features of each, side by side: the words the saliency image grounds reach H
+    when it acts, as in the language_input condition; needs the frozen encoder)."""
     head_hidden: int = 64
     """Hidden units of H's fully connected head."""
     share_action_parts: bool = False
@@ -142,6 +147,9 @@ class TamerConfig:
         if self.input_image not in INPUT_IMAGES:
             raise ValueError(
                 f'input_image must be one of {INPUT_IMAGES}, got {self.input_image!r}')
+        if self.input_image == 'both' and self.fine_tune_encoder:
+            raise ValueError("input_image 'both' works on the frozen encoder's features; "
+                             'fine_tune_encoder must be false')
         if not 0.0 <= self.window_min_s < self.window_max_s:
             raise ValueError('the credit window needs 0 <= window_min_s < window_max_s, got '
                              f'{self.window_min_s}, {self.window_max_s}')

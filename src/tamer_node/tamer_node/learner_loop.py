@@ -250,7 +250,8 @@ class LearnerWorker(threading.Thread):
         return self.buffer.sample(self.config.batch_size, self._rng)
 
     def _wants_companion(self) -> bool:
-        return self.learner.alpha > 0.0
+        """Wait for credited steps' saliency images: for the L2 term, or as part of H's input."""
+        return self.learner.alpha > 0.0 or self.config.input_image == 'both'
 
     def process(self, event: FeedbackEvent, history: StepHistory) -> List[Sample]:
         """Count the event and return its samples (already added to the buffer)."""

@@ -187,12 +187,19 @@ class HModel(nn.Module):
 
     def __init__(self, hidden: int = 64, freeze_encoder: bool = True,
                  encoder: Optional[Encoder] = None, num_actions: int = NUM_ACTIONS,
-                 parts=None):
-        """``parts``: each action's joystick parts (``joystick_parts``) to share, or None."""
+                 parts=None, streams: int = 1):
+        """
+        ``parts``: each action's joystick parts (``joystick_parts``) to share, or None.
+
+        ``streams``: images whose features the head reads side by side (2: the frame and its
+        saliency image, ``input_image: both``; ``from_features`` then takes (B, 2240)).
+        """
         super().__init__()
         self.encoder = encoder if encoder is not None else Encoder()
+        self.streams = int(streams)
         last = nn.Linear(hidden, num_actions) if parts is None else PartsHead(hidden, parts)
-        self.head = nn.Sequential(nn.Linear(FEATURE_SIZE, hidden), nn.LeakyReLU(0.01), last)
+        self.head = nn.Sequential(nn.Linear(FEATURE_SIZE * self.streams, hidden),
+                                  nn.LeakyReLU(0.01), last)
         self.freeze_encoder = freeze_encoder
         self.encoder.requires_grad_(not freeze_encoder)
 
@@ -212,8 +219,9 @@ class HModel(nn.Module):
         return self.head[0](features)
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
-        """(B, 1, 105, 80) float -> (B, 18) predicted feedback for every action."""
-        return self.head(self.features(x))
+        """(B, streams, 105, 80) float -> (B, 18) predicted feedback for every action."""
+        return self.head(torch.cat([self.features(x[:, i:i + 1])
+                                    for i in range(self.streams)], dim=1))
 
     def trainable_parameters(self):
         return [p for p in self.parameters() if p.requires_grad]

@@ -34,7 +34,7 @@ from rclpy.node import Node
 from sensor_msgs.msg import Image, Joy
 from std_msgs.msg import Float32, Header, String
 from tamer_node.agent import BadInput, default_run_dir, share_the_cpu, TamerAgent
-from tamer_node.config import field_docs, TamerConfig
+from tamer_node.config import field_docs, TamerConfig, WAITS_FOR_SALIENCY
 from tamer_node.persistence import json_number
 
 RUNTIME_PARAMETERS = ('alpha',)
@@ -84,7 +84,7 @@ class TamerNode(Closing, Node):
         self.create_timer(self.config.metrics_period_s, self._publish_metrics, clock=steady)
         self._frame_id = ''
         self._drops = 0
-        if self.config.input_image == 'saliency':
+        if self.config.input_image in WAITS_FOR_SALIENCY:
             # A step whose saliency image does not come is answered on its observation.
             period = min(0.05, max(0.005, self.config.saliency_timeout_s / 5))
             self.create_timer(period, self._answer_overdue, clock=steady)

@@ -74,8 +74,25 @@ def settled(event: FeedbackEvent, history: StepHistory, config: TamerConfig,
     """Return whether no step ``event`` credits can still get its companion image."""
     if not wants_companion or event.status != 'ok':
         return True
-    companion = other_kind(config.input_image)
+    companion = companion_kind(config.input_image)
     return all(history.settled(stamp, companion) for stamp in credit(event, history, config))
+
+
+def companion_kind(input_image: str) -> str:
+    """Return the image a step waits for besides the one acted on ('both': its saliency)."""
+    return 'saliency' if input_image == 'both' else other_kind(input_image)
+
+
+def both_item(record: StepRecord, history: StepHistory, model: HModel) -> torch.Tensor:
+    """
+    Return a step's (2240,) state with ``input_image: both``, as the actor read it.
+
+    Its observation stands in for a saliency image that never came
+    (``ActingPath.both_features``).
+    """
+    saliency = 'saliency' if record.saliency is not None else 'observation'
+    return torch.cat([stored_item(record, 'observation', history, model),
+                      stored_item(record, saliency, history, model)])
 
 
 def stored_item(record: StepRecord, kind: str, history: StepHistory,
@@ -130,12 +147,18 @@ def pair(event: FeedbackEvent, history: StepHistory, config: TamerConfig, model:
         kind = config.input_image
         for stamp, weight in sorted(credit(event, history, config).items()):
             record = history.get(stamp)
-            if record is None or record.image(kind) is None:
+            acted_on = 'observation' if kind == 'both' else kind
+            if record is None or record.image(acted_on) is None:
                 continue  # evicted meanwhile, or never had the image acted on
-            state = stored_item(record, kind, history, model)
-            companion = stored_item(record, other_kind(kind), history, model)
-            counts['pairing/with_saliency' if companion is not None
-                   else 'pairing/without_saliency'] += 1
+            if kind == 'both':  # the saliency image is in the state: no L2 companion
+                state, companion = both_item(record, history, model), None
+                counts['pairing/with_saliency' if record.saliency is not None
+                       else 'pairing/without_saliency'] += 1
+            else:
+                state = stored_item(record, kind, history, model)
+                companion = stored_item(record, other_kind(kind), history, model)
+                counts['pairing/with_saliency' if companion is not None
+                       else 'pairing/without_saliency'] += 1
             samples.append(Sample(state, companion, record.learned_action, float(event.h),
                                   float(weight), stamp, event.seq, history.session))
         if samples and config.credit_posterior and event.credit == 'window':

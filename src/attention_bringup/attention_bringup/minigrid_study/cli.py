@@ -17,7 +17,7 @@ import sys
 from typing import Optional, Sequence
 
 from attention_bringup.experiment import engine, runner, spec as specs
-from attention_bringup.graph import CONDITIONS
+from attention_bringup.graph import CONDITIONS, THESIS_CONDITIONS
 from attention_bringup.plan import positive_int
 
 SPEC = specs.load('doorkey')
@@ -30,7 +30,8 @@ def argument_parser() -> argparse.ArgumentParser:
         description='Run the six conditions on DoorKey (a new layout every episode) with the '
                     'human-like teacher, analyse them and write docs/results_minigrid.md. '
                     'Existing trial results are skipped: the same command resumes.')
-    parser.add_argument('--conditions', nargs='+', choices=CONDITIONS, default=list(CONDITIONS),
+    parser.add_argument('--conditions', nargs='+', choices=CONDITIONS,
+                        default=list(THESIS_CONDITIONS),
                         metavar='NAME')
     parser.add_argument('--trials', type=positive_int, default=len(SPEC.seeds),
                         help=f'trials per condition, seeds 0..N-1 (default {len(SPEC.seeds)})')
@@ -57,7 +58,7 @@ def argument_parser() -> argparse.ArgumentParser:
 
 def regenerate_command(options: argparse.Namespace) -> str:
     words = ['.venv/bin/attention_study_minigrid']
-    if list(options.conditions) != list(CONDITIONS):
+    if list(options.conditions) != list(THESIS_CONDITIONS):
         words += ['--conditions', *options.conditions]
     words += ['--trials', str(options.trials), '--steps', str(options.steps),
               '--heldout-fraction', f'{options.heldout_fraction:g}', '--parallel',

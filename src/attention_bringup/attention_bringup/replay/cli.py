@@ -31,7 +31,7 @@ from typing import Optional
 
 from attention_bringup import report
 from attention_bringup.driver import Driver
-from attention_bringup.graph import CONDITIONS
+from attention_bringup.graph import THESIS_CONDITIONS
 from attention_bringup.params import ParamsFileError
 from attention_bringup.plan import chosen_domain
 from attention_bringup.processes import node_environ, NodeGroup
@@ -256,7 +256,7 @@ def replay_study(options, domain_id: int) -> int:
     out = Path(options.out or Path('runs') / f'{datetime.datetime.now():%Y%m%d-%H%M%S}'
                '-replay-study').resolve()
     rows, code = [], 0
-    for condition in CONDITIONS:
+    for condition in THESIS_CONDITIONS:
         run_dir = out / condition
         if _status_of(run_dir) != 'completed':  # resumable: a completed one is kept
             plan = build_plan(dataclasses.replace(options, condition=condition,

@@ -21,7 +21,7 @@ import sys
 from typing import List, Optional, Sequence
 
 from attention_bringup.experiment import engine, runner, spec as specs
-from attention_bringup.graph import CONDITIONS
+from attention_bringup.graph import CONDITIONS, THESIS_CONDITIONS
 from attention_bringup.plan import positive_int
 from feedback_node.judging import TRAINERS
 
@@ -40,8 +40,11 @@ def argument_parser() -> argparse.ArgumentParser:
         description='Run the study of thesis chapter 5 (every condition, N seeded trials of the '
                     'real node graph), analyse it and write the report. Existing trial results '
                     'are skipped, so an interrupted study resumes with the same command.')
-    parser.add_argument('--conditions', nargs='+', choices=CONDITIONS, default=list(CONDITIONS),
-                        metavar='NAME', help=f'conditions (default all: {" ".join(CONDITIONS)})')
+    parser.add_argument('--conditions', nargs='+', choices=CONDITIONS,
+                        default=list(THESIS_CONDITIONS),
+                        metavar='NAME',
+                        help=f"conditions (default the thesis's six: "
+                             f'{" ".join(THESIS_CONDITIONS)})')
     parser.add_argument('--trials', type=positive_int, default=DEFAULT_TRIALS,
                         help=f'trials per condition, seeds 0..N-1 (default {DEFAULT_TRIALS})')
     parser.add_argument('--steps', type=positive_int, default=DEFAULT_STEPS,
@@ -89,7 +92,7 @@ def default_runs_dir(out: str) -> str:
 
 def regenerate_command(options: argparse.Namespace, parallel: int) -> str:
     words = ['.venv/bin/attention_study']
-    if list(options.conditions) != list(CONDITIONS):
+    if list(options.conditions) != list(THESIS_CONDITIONS):
         words += ['--conditions', *options.conditions]
     words += ['--trials', str(options.trials), '--steps', str(options.steps),
               '--parallel', str(parallel), '--out', options.out, '--report', options.report]

@@ -28,6 +28,9 @@ CONDITION_TEXT = {
                            '(thesis Figure 5.4).',
     'hidden_agent': 'The agent blurred away, everything else kept; the learner acts and '
                     'learns on that image, alpha 0 (thesis chapter 5, text only).',
+    'language_input': 'Language saliency for every step (the agent alone while no words are in '
+                      'force); H reads the frame and the saliency image side by side when it '
+                      'acts and learns, alpha 0 (issue 25, beside the thesis).',
 }
 
 FIGURE_CAPTIONS = {
