@@ -56,6 +56,17 @@ STOP_TIMEOUT_S = 30.0
 EXIT_INTERRUPTED = 130
 
 
+SERVERS = (
+    ('console', CONSOLE, r'trainer console at (\S+)',
+     'Trainer console: {url} (open it in a browser: + or Up is good, - or Down is bad, type '
+     'words and press Enter)'),
+    ('foxglove', FOXGLOVE, r'Foxglove bridge at (\S+)',
+     'Foxglove: {url} (in Foxglove or Lichtblick: Open connection, Foxglove WebSocket, this '
+     'URL; the layout: {layout})'),
+)
+"""(option, node, what its log says once it serves, what the launcher prints)."""
+
+
 class Launcher:
     """One run: start, watch, stop, report."""
 
@@ -67,8 +78,8 @@ class Launcher:
         self.started_wall = time.monotonic()
         self.interactive = (not plan.options.quiet) and err.isatty()
         self._gallery_steps = {}  # gallery image stamp -> agent step
-        self.console_url: Optional[str] = None
-        self.foxglove_url: Optional[str] = None
+        self.urls: dict = {}
+        """The URL each server (``SERVERS``) printed once it served."""
 
     # -- set-up ---------------------------------------------------------------------------
     def _prepare_run_dir(self) -> None:
@@ -238,8 +249,7 @@ class Launcher:
             ended = self._interrupted_or_dead(group)
             if ended:
                 return ended
-            self._announce_console()
-            self._announce_foxglove()
+            self._announce_servers()
             with monitor.lock:
                 tracker = monitor.tracker
                 writer.write(tracker.take_new_rows())
@@ -265,28 +275,16 @@ class Launcher:
                 last_line = now
             time.sleep(0.2)
 
-    def _announce_console(self) -> None:
-        """Print the trainer console's URL once it serves (``--console``)."""
-        if not self.plan.options.console or self.console_url is not None:
-            return
-        command = next(c for c in self.plan.commands if c.name == CONSOLE)
-        found = re.search(r'trainer console at (\S+)', log_tail(command.log_path))
-        if found:
-            self.console_url = found.group(1)
-            self._say(f'Trainer console: {self.console_url} (open it in a browser: + or Up '
-                      'is good, - or Down is bad, type words and press Enter)')
-
-    def _announce_foxglove(self) -> None:
-        """Print the Foxglove bridge's URL once it serves (``--foxglove``)."""
-        if not self.plan.options.foxglove or self.foxglove_url is not None:
-            return
-        command = next(c for c in self.plan.commands if c.name == FOXGLOVE)
-        found = re.search(r'Foxglove bridge at (\S+)', log_tail(command.log_path))
-        if found:
-            self.foxglove_url = found.group(1)
-            self._say(f'Foxglove: {self.foxglove_url} (in Foxglove or Lichtblick: Open '
-                      'connection, Foxglove WebSocket, this URL; the layout: '
-                      f'{LAYOUT_FILE})')
+    def _announce_servers(self) -> None:
+        """Print each server's URL once it serves (``--console``, ``--foxglove``)."""
+        for option, name, pattern, text in SERVERS:
+            if not getattr(self.plan.options, option) or self.urls.get(option):
+                continue
+            command = next(c for c in self.plan.commands if c.name == name)
+            found = re.search(pattern, log_tail(command.log_path))
+            if found:
+                self.urls[option] = found.group(1)
+                self._say(text.format(url=found.group(1), layout=LAYOUT_FILE))
 
     def _label_gallery(self, tracker, gallery) -> None:
         """Note the agent step of each gallery image while the tracker still knows it."""
@@ -445,8 +443,8 @@ class Launcher:
             'budget': self.plan.options.steps,
             'steps': steps,
             'session': self.plan.continuation.session,
-            'console_url': self.console_url,
-            'foxglove_url': self.foxglove_url,
+            'console_url': self.urls.get('console'),
+            'foxglove_url': self.urls.get('foxglove'),
             'wall_time_s': round(time.monotonic() - self.started_wall, 2),
             'startup_s': first['wall_time_s'] if first else None,
             'training_time_s': round(training_s, 2),
