@@ -373,6 +373,26 @@ def test_language_input_acts_on_each_steps_saliency_image(tmp_path):
 
 
 @pytest.mark.topics
+def test_the_text_conditioned_peer_reads_each_mission(tmp_path):
+    """--condition text_film (issue 25's peer): H reads the words, no saliency image made."""
+    run_dir, steps = tmp_path / 'run', 120
+    result = subprocess.run(
+        [LAUNCHER, '--task', 'fetch', '--condition', 'text_film', '--steps', str(steps),
+         '--seed', '5', '--run-dir', str(run_dir), '--quiet'],
+        capture_output=True, text=True, timeout=240)
+    assert result.returncode == 0, result.stderr[-4000:]
+    summary = _read_json(run_dir / 'summary.json')
+    assert summary['status'] == 'completed' and summary['steps'] == steps
+    assert 'text film' in (run_dir / 'logs' / 'tamer_node.log').read_text()
+    assert summary['message_counts'].get('saliency', 0) == 0  # words, not images
+    logged = [json.loads(line) for line in
+              (run_dir / 'feedback_log.jsonl').read_text().splitlines()]
+    said = [entry['text'] for entry in logged if entry['kind'] == 'utterance']
+    assert len(said) >= summary['episodes'] >= 2  # every mission reached the learner
+    assert summary['metrics']['samples/added'] > 0
+
+
+@pytest.mark.topics
 def test_a_person_teaches_doorkey_over_topics(tmp_path, probe):
     """--no-synthetic --realtime: what a person sends with ros2 topic pub reaches the log."""
     from attention_common import qos, topics

@@ -238,6 +238,26 @@ def test_both_inputs_act_and_learn_on_the_frame_and_its_saliency_image(agents):
         TamerConfig(input_image='both', fine_tune_encoder=True).validate()
 
 
+def test_a_text_conditioned_agent_learns_on_the_words_in_force_when_it_acted(agents):
+    from tamer_node.words import bag_of_words
+    agent = agents(text_conditioning='film', alpha=0.0)
+    assert agent.on_utterance('pick up the red ball') == 'ok'
+    play(agent, 1)
+    agent.on_utterance('pick up the purple key')
+    play(agent, 1, first=1)
+    for i in (0, 1):
+        agent.on_feedback(1.0, 'stamped', stamp(i))
+    assert processed(agent, 2)
+    first, second = sorted(agent.buffer.samples(), key=lambda s: s.stamp)
+    assert first.state.shape == (FEATURE_SIZE + 64,)
+    assert torch.equal(first.state[-64:], bag_of_words('pick up the red ball', 64))
+    assert torch.equal(second.state[-64:], bag_of_words('pick up the purple key', 64))
+    assert torch.equal(first.state[:FEATURE_SIZE],
+                       agent.actor.features(agent.history.get(stamp(0)).observation))
+    with pytest.raises(ValueError, match='fine_tune_encoder'):
+        TamerConfig(text_conditioning='film', fine_tune_encoder=True).validate()
+
+
 @pytest.mark.parametrize('fine_tune', [False, True])
 def test_a_frozen_encoder_learns_on_the_features_the_actor_computed(agents, fine_tune):
     agent = agents(alpha=1e-4, fine_tune_encoder=fine_tune)

@@ -281,6 +281,41 @@ def test_with_both_images_h_acts_on_what_the_saliency_image_names(route_frames):
     assert first == second  # on the frame alone the two cases are one state
 
 
+def test_film_h_acts_on_what_the_words_name(route_frames):
+    """text_conditioning film (the peer): the same frame, two missions, two right actions."""
+    from tamer_node.words import bag_of_words
+    torch.manual_seed(0)
+    model = HModel(16, encoder=load_encoder(DEFAULT_ENCODER), num_actions=4, text_size=64)
+    learner = Learner(model, 3e-3, alpha=0.0, max_grad_norm=1.0)
+    with torch.no_grad():
+        frame = model.features(to_input(route_frames[:1]))[0]
+    contexts = [torch.cat([frame, bag_of_words(text, 64)])
+                for text in ('pick up the red ball', 'pick up the purple key')]
+    with torch.no_grad():  # FiLM starts as no change: the words matter only once learned
+        before = model.from_features(torch.stack(contexts))
+    assert torch.equal(before[0], before[1])
+    states, actions, h = [], [], []
+    for context, right in ((0, 0), (1, 1)):
+        for action in range(4):
+            states.append(contexts[context])
+            actions.append(action)
+            h.append(1.0 if action == right else -1.0)
+    for _ in range(300):
+        learner.train_step(make_batch(torch.stack(states), actions=actions, h=h))
+    with torch.no_grad():
+        assert model.from_features(torch.stack(contexts)).argmax(dim=1).tolist() == [0, 1]
+
+
+def test_a_bag_of_words_tells_missions_apart_and_ignores_case():
+    from tamer_node.words import bag_of_words
+    red = bag_of_words('pick up the red ball', 64)
+    purple = bag_of_words('pick up the purple ball', 64)
+    assert not torch.equal(red, purple)
+    assert torch.equal(red, bag_of_words('Pick up the RED ball!', 64))
+    assert torch.linalg.vector_norm(red).item() == pytest.approx(1.0)
+    assert not bag_of_words('', 64).any()
+
+
 # Credit assignment on hand-made timelines.
 @pytest.mark.parametrize('span,feedback_at,expected', [
     ((0.0, 1.0), 1.0, 0.8 / 3.8),            # the window [-3, 0.8] covers [0, 0.8]

@@ -20,9 +20,10 @@ TASKS_DIR = 'tasks'
 THESIS_CONDITIONS = (
     'vanilla', 'language', 'blind_obs', 'blind_saliency', 'language_every_step', 'hidden_agent',
 )
-CONDITIONS = THESIS_CONDITIONS + ('language_input',)
-"""Every condition a run can take: the thesis's six, then those added beside them
-(language_input: H sees the saliency image beside the frame when it acts, issue 25)."""
+CONDITIONS = THESIS_CONDITIONS + ('language_input', 'text_film')
+"""Every condition a run can take: the thesis's six, then those added beside them (issue 25:
+language_input, H sees the saliency image beside the frame when it acts; text_film, the peer,
+H's features conditioned on the utterance's words as BabyAI's agents are)."""
 DEFAULT_CONDITION = 'language'
 
 

@@ -23,7 +23,7 @@ from launch_ros.actions import Node
 NODES = ('env_node', 'feedback_node', 'saliency_node', 'tamer_node')
 CONDITIONS = (
     'vanilla', 'language', 'blind_obs', 'blind_saliency', 'language_every_step', 'hidden_agent',
-    'language_input',
+    'language_input', 'text_film',
 )
 GRAPH_FILE = 'graph.yaml'
 CONDITIONS_DIR = 'conditions'

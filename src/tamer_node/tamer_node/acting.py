@@ -25,6 +25,7 @@ from tamer_node.history import holds, StepHistory
 from tamer_node.model import HModel, preprocess, to_input
 from tamer_node.persistence import (
     KIND_ACTION, KIND_OBSERVATION, KIND_SALIENCY, KIND_TAKEN, StepJournal)
+from tamer_node.words import bag_of_words
 import torch
 
 
@@ -151,6 +152,10 @@ class ActingPath:
             maxlen=16)
         """(stamp, action, H of every action) of the newest acts, for a viewer; the node takes
         them after it has published the action (``action_values``), so they never delay it."""
+        self.text: Optional[torch.Tensor] = None
+        """The bag of words of the newest utterance (text_conditioning film; zeros before)."""
+        if config.text_conditioning == 'film':
+            self.text = torch.zeros(config.text_size)
         self._held: Optional[int] = None  # the decision being held (decision_period_s)
         self._decision: Optional[int] = None  # the stamp of the step that chose it
 
@@ -268,6 +273,18 @@ class ActingPath:
             answers.append((stamp, action))
         return answers
 
+    def hear(self, text: str) -> None:
+        """Take an utterance heard: a text-conditioned agent reads it from its next step on."""
+        if self.text is not None:
+            self.text = bag_of_words(text, self.config.text_size)
+
+    def _with_text(self, record, features: torch.Tensor) -> torch.Tensor:
+        """Return ``features`` with the words in force appended (text conditioning), kept."""
+        if self.text is None:
+            return features
+        self.history.put_text(record.stamp, self.text)
+        return torch.cat([features, self.text])
+
     def both_features(self, record) -> torch.Tensor:
         """
         Return the step's (2240,) input with ``input_image: both``: frame, saliency features.
@@ -308,12 +325,13 @@ class ActingPath:
         held = self._held if holds(self._decision, record.stamp,
                                    self.config.decision_period_s) else None
         if self.config.input_image == 'both':  # the frame's features, then its saliency's
-            values = self.actor.values_on_features(self.both_features(record))
+            values = self.actor.values_on_features(
+                self._with_text(record, self.both_features(record)))
         elif self.actor.model.freeze_encoder:
             image = record.image(kind) if image is None else image
             features = self.actor.features(image)  # encoded once: acting and learning share it
             self.history.put_features(kind, record.stamp, features)
-            values = self.actor.values_on_features(features)
+            values = self.actor.values_on_features(self._with_text(record, features))
         else:
             values = self.actor.predict(record.image(kind) if image is None else image)
         action = held if held is not None else self.actor.choose(values)

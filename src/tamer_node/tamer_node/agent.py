@@ -105,7 +105,8 @@ class TamerAgent:
                        encoder=encoder, num_actions=self.task.num_actions,
                        parts=(joystick_parts(self.task.joy_actions)
                               if config.share_action_parts else None),
-                       streams=2 if config.input_image == 'both' else 1)
+                       streams=2 if config.input_image == 'both' else 1,
+                       text_size=config.text_size if config.text_conditioning == 'film' else 0)
         self.learner = Learner(model, config.learning_rate, config.alpha, config.max_grad_norm,
                                config.credit_loss)
         self.actor = ActingModel(model, config.greedy_margin, config.seed,
@@ -113,7 +114,8 @@ class TamerAgent:
         self.slot = SnapshotSlot()
         # A frozen encoder: the buffer holds each image's features (computed once, by the
         # actor for the image it acts on), so an update runs the small head only.
-        self.buffer = (FeedbackBuffer(config.buffer_capacity, (FEATURE_SIZE * model.streams,),
+        self.buffer = (FeedbackBuffer(config.buffer_capacity,
+                                      (FEATURE_SIZE * model.streams + model.text_size,),
                                       np.float32)
                        if model.freeze_encoder else FeedbackBuffer(config.buffer_capacity))
         self.history = StepHistory(config.history_steps)
@@ -141,10 +143,16 @@ class TamerAgent:
         self.on_action_taken = self.acting.on_action_taken
         self.act_overdue = self.acting.act_overdue
         self.on_feedback = self.intake.on_feedback
-        self.on_utterance = self.intake.on_utterance
         self._last_rate = (time.monotonic(), 0)
         self._started = False
         self._updates_at_start = (0, 0)  # (all, minibatch) updates before this process
+
+    def on_utterance(self, text: str, extra: Optional[dict] = None) -> str:
+        """Log the utterance (intake.py); a text-conditioned learner also hears it from now on."""
+        status = self.intake.on_utterance(text, extra)
+        if status == 'ok':
+            self.acting.hear(text)
+        return status
 
     @property
     def on_logged(self) -> Optional[Callable[[dict], None]]:

@@ -11,6 +11,7 @@ CREDIT_MODES = ('step', 'window')
 CREDIT_LOSSES = ('each', 'mixture')
 INPUT_IMAGES = ('observation', 'saliency', 'both')
 """'both': H sees the step's frame and its saliency image side by side (language_input)."""
+TEXT_CONDITIONINGS = ('off', 'film')
 WAITS_FOR_SALIENCY = ('saliency', 'both')
 """The inputs that need a step's saliency image before the agent acts on it."""
 UPDATE_CLOCKS = ('sim', 'wall')
@@ -87,6 +88,12 @@ class TamerConfig:
     """Image the agent acts and learns on: 'observation', the step's 'saliency' image, or
     'both' (the features of each, side by side: the words the saliency image grounds reach H
     when it acts, as in the language_input condition; needs the frozen encoder)."""
+    text_conditioning: str = 'off'
+    """'film': H's hidden layer is scaled and shifted by the words of the utterance in force
+    (the newest heard), as BabyAI's text-conditioned agents read their instruction (FiLM);
+    'off': H never reads words (the thesis's learners, language_input)."""
+    text_size: int = 64
+    """Buckets of the hashed bag of words (words.py) with text_conditioning film."""
     head_hidden: int = 64
     """Hidden units of H's fully connected head."""
     share_action_parts: bool = False
@@ -147,6 +154,12 @@ class TamerConfig:
         if self.input_image not in INPUT_IMAGES:
             raise ValueError(
                 f'input_image must be one of {INPUT_IMAGES}, got {self.input_image!r}')
+        if self.text_conditioning not in TEXT_CONDITIONINGS:
+            raise ValueError(f'text_conditioning must be one of {TEXT_CONDITIONINGS}, got '
+                             f'{self.text_conditioning!r}')
+        if self.text_conditioning != 'off' and self.fine_tune_encoder:
+            raise ValueError("text_conditioning 'film' works on the frozen encoder's features; "
+                             'fine_tune_encoder must be false')
         if self.input_image == 'both' and self.fine_tune_encoder:
             raise ValueError("input_image 'both' works on the frozen encoder's features; "
                              'fine_tune_encoder must be false')
@@ -167,6 +180,7 @@ class TamerConfig:
             'max_stamp_jump_s': self.max_stamp_jump_s > 0.0,
             'checkpoint_period_s': self.checkpoint_period_s >= 0.0,
             'metrics_period_s': self.metrics_period_s > 0.0,
+            'text_size': self.text_size >= 1,
             'head_hidden': self.head_hidden >= 1,
             'greedy_margin': 0.0 <= self.greedy_margin <= 2.0,
             'decision_period_s': self.decision_period_s >= 0.0,

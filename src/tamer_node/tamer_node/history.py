@@ -48,6 +48,8 @@ class StepRecord:
     """(1120,) float32 frozen-encoder features of the observation, once computed."""
     saliency_features: Optional[torch.Tensor] = None
     """(1120,) float32 frozen-encoder features of the saliency image, once computed."""
+    text: Optional[torch.Tensor] = None
+    """The bag of words of the utterance in force when the agent acted (text conditioning)."""
 
     def image(self, kind: str) -> Optional[torch.Tensor]:
         return getattr(self, kind)
@@ -97,6 +99,13 @@ class StepHistory:
             record = self._records.get(stamp)
             if record is not None and record.image(kind) is not None:
                 setattr(record, f'{kind}_features', features)
+
+    def put_text(self, stamp: int, text: torch.Tensor) -> None:
+        """Keep the words the agent read when it acted on step ``stamp`` (if still held)."""
+        with self._lock:
+            record = self._records.get(stamp)
+            if record is not None:
+                record.text = text
 
     def set_action(self, stamp: int, action: int, decision: Optional[int] = None) -> None:
         with self._lock:

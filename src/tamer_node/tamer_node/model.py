@@ -187,12 +187,14 @@ class HModel(nn.Module):
 
     def __init__(self, hidden: int = 64, freeze_encoder: bool = True,
                  encoder: Optional[Encoder] = None, num_actions: int = NUM_ACTIONS,
-                 parts=None, streams: int = 1):
+                 parts=None, streams: int = 1, text_size: int = 0):
         """
         ``parts``: each action's joystick parts (``joystick_parts``) to share, or None.
 
         ``streams``: images whose features the head reads side by side (2: the frame and its
         saliency image, ``input_image: both``; ``from_features`` then takes (B, 2240)).
+        ``text_size`` > 0: FiLM, the hidden layer scaled by (1 + gamma) and shifted by beta,
+        both linear in the utterance's bag of words, which ends each state (B, 1120 + size).
         """
         super().__init__()
         self.encoder = encoder if encoder is not None else Encoder()
@@ -200,6 +202,13 @@ class HModel(nn.Module):
         last = nn.Linear(hidden, num_actions) if parts is None else PartsHead(hidden, parts)
         self.head = nn.Sequential(nn.Linear(FEATURE_SIZE * self.streams, hidden),
                                   nn.LeakyReLU(0.01), last)
+        self.text_size = int(text_size)
+        self.film = None
+        if self.text_size:
+            self.film = nn.Linear(self.text_size, 2 * hidden)
+            with torch.no_grad():  # no words: the plain head
+                self.film.weight.zero_()
+                self.film.bias.zero_()
         self.freeze_encoder = freeze_encoder
         self.encoder.requires_grad_(not freeze_encoder)
 
@@ -211,11 +220,17 @@ class HModel(nn.Module):
         return self.encoder.standardized(x)
 
     def from_features(self, features: torch.Tensor) -> torch.Tensor:
-        """(B, 1120) features -> (B, 18)."""
-        return self.head(features)
+        """(B, 1120) features (then the bag of words, with FiLM) -> (B, 18)."""
+        if self.film is None:
+            return self.head(features)
+        images, text = features[:, :-self.text_size], features[:, -self.text_size:]
+        gamma, beta = self.film(text).chunk(2, dim=1)
+        return self.head[2](self.head[1](self.head[0](images)) * (1.0 + gamma) + beta)
 
     def hidden(self, features: torch.Tensor) -> torch.Tensor:
         """(B, 1120) features -> (B, hidden) pre-activations (to count dead units)."""
+        if self.film is not None:
+            features = features[:, :-self.text_size]
         return self.head[0](features)
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:

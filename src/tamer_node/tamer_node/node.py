@@ -90,7 +90,8 @@ class TamerNode(Closing, Node):
             self.create_timer(period, self._answer_overdue, clock=steady)
         self.get_logger().info(
             f'ready: run_dir {self.config.run_dir}, alpha {self.config.alpha}, credit '
-            f'{self.config.credit}, input_image {self.config.input_image}, model version '
+            f'{self.config.credit}, input_image {self.config.input_image}, text '
+            f'{self.config.text_conditioning}, model version '
             f'{self.agent.learner.updates}, buffer {len(self.agent.buffer)}'
             + (f', {replayed} logged feedback replayed' if self.config.resume else ''))
 

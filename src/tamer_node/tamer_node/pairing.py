@@ -159,6 +159,11 @@ def pair(event: FeedbackEvent, history: StepHistory, config: TamerConfig, model:
                 companion = stored_item(record, other_kind(kind), history, model)
                 counts['pairing/with_saliency' if companion is not None
                        else 'pairing/without_saliency'] += 1
+            if model.text_size:  # the words the agent read when it acted (none: zeros)
+                words = record.text if record.text is not None else torch.zeros(
+                    model.text_size)
+                state = torch.cat([state, words])
+                companion = None if companion is None else torch.cat([companion, words])
             samples.append(Sample(state, companion, record.learned_action, float(event.h),
                                   float(weight), stamp, event.seq, history.session))
         if samples and config.credit_posterior and event.credit == 'window':

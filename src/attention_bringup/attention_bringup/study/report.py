@@ -31,6 +31,9 @@ CONDITION_TEXT = {
     'language_input': 'Language saliency for every step (the agent alone while no words are in '
                       'force); H reads the frame and the saliency image side by side when it '
                       'acts and learns, alpha 0 (issue 25, beside the thesis).',
+    'text_film': 'No saliency images; H reads the words of the utterance in force (a hashed bag '
+                 "of words, FiLM on its hidden layer), as BabyAI's text-conditioned agents do, "
+                 'alpha 0 (issue 25, the peer).',
 }
 
 FIGURE_CAPTIONS = {
