@@ -1,5 +1,6 @@
 """The teardown watchdog ends a teardown that hangs in native code holding the GIL."""
 
+import signal
 import subprocess
 import sys
 import time
@@ -63,3 +64,24 @@ def test_the_launcher_names_a_node_whose_teardown_the_watchdog_ended(tmp_path):
     codes = group.stop(sigint_timeout=15.0)
     assert codes['hung_node'] == 0
     assert group.teardown_hangs() == ['hung_node']
+
+
+CHILD = '''
+import os, signal
+from attention_common.node_main import unblock_stop_signals
+ignored = signal.getsignal(signal.SIGINT) is signal.SIG_IGN
+unblock_stop_signals()
+try:
+    os.kill(os.getpid(), signal.SIGINT)  # (a handler runs as soon as kill returns)
+    print('ignored' if ignored else 'not ignored', 'ran on')
+except KeyboardInterrupt:
+    print('ignored' if ignored else 'not ignored', 'stopped')
+'''
+
+
+def test_a_process_started_with_sigint_ignored_hears_it_again():
+    """A study started with ``&`` from a script inherits SIGINT ignored; its stop must work."""
+    result = subprocess.run([sys.executable, '-c', CHILD], capture_output=True, text=True,
+                            timeout=60, preexec_fn=lambda: signal.signal(signal.SIGINT,
+                                                                         signal.SIG_IGN))
+    assert result.stdout.strip() == 'ignored stopped', result.stdout + result.stderr

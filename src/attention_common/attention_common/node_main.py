@@ -45,14 +45,19 @@ STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
 def unblock_stop_signals() -> None:
     """
-    Let SIGINT and SIGTERM reach this process, whatever its parent blocked.
+    Let SIGINT and SIGTERM reach this process, whatever its parent blocked or ignored.
 
     A signal mask is inherited across fork and exec: a Ray worker's threads block SIGINT, so a
     launcher started from a Ray task, and its nodes, never got the SIGINT that stops them
-    cleanly (each needed SIGTERM, 10 s later).
+    cleanly (each needed SIGTERM, 10 s later). An ignored signal stays ignored across exec too:
+    a study started in the background by a shell without job control (``cmd &`` in a script)
+    ignores SIGINT, and so did every launcher it started, which then ran on until SIGTERM
+    30 s later when the study was stopped. Call from the main thread.
     """
     if hasattr(signal, 'pthread_sigmask'):
         signal.pthread_sigmask(signal.SIG_UNBLOCK, STOP_SIGNALS)
+    if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 class Closing:

@@ -24,6 +24,7 @@ from attention_bringup.experiment.trials import (
     build_record, is_usable, read_json, trial_path, write_json)
 from attention_bringup.plan import positive_int
 from attention_common.isolation import isolated_environ
+from attention_common.node_main import unblock_stop_signals
 from attention_common.run_files import LAUNCHER_LOG
 
 EXIT_INTERRUPTED = 130
@@ -241,6 +242,7 @@ def run_pending(jobs: Sequence[TrialJob], backend: Backend, timeout_s: float,
     once they have (interrupted trials write no result file and run again next time).
     """
     launcher = launcher_path()
+    unblock_stop_signals()  # Ctrl-C reaches the study, and the SIGINT it sends each launcher
     stop, done, box = threading.Event(), threading.Event(), {}
 
     def work() -> None:
