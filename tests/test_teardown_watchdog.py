@@ -66,7 +66,7 @@ def test_the_launcher_names_a_node_whose_teardown_the_watchdog_ended(tmp_path):
     assert group.teardown_hangs() == ['hung_node']
 
 
-CHILD = '''
+CHILD = """
 import os, signal
 from attention_common.node_main import unblock_stop_signals
 ignored = signal.getsignal(signal.SIGINT) is signal.SIG_IGN
@@ -76,7 +76,7 @@ try:
     print('ignored' if ignored else 'not ignored', 'ran on')
 except KeyboardInterrupt:
     print('ignored' if ignored else 'not ignored', 'stopped')
-'''
+"""
 
 
 def test_a_process_started_with_sigint_ignored_hears_it_again():
