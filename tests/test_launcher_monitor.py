@@ -6,6 +6,7 @@ executor's own thread as the gallery asks.
 """
 
 import io
+import os
 import threading
 
 from attention_bringup.gallery import GalleryCollector
@@ -90,3 +91,41 @@ def test_image_subscriptions_follow_the_gallery_on_the_executor_thread(spinning)
     assert topics.SALIENCY in _subscribed_topics(monitor)
     assert err.getvalue() == ''
     monitor.destroy_node()
+
+
+@pytest.mark.topics
+def test_the_spinning_thread_ends_at_stop_before_the_executor_is_shut_down():
+    """
+    Driver.__exit__ ends the spinning thread before it shuts the executor down.
+
+    Shut down under a spinning thread, rclpy raised 'Attempt to remove nonexistent callback'
+    and the process aborted after a finished run.
+    """
+    from attention_bringup.driver import Driver
+    ticks = []
+
+    def make_node(context):
+        node = Node('driver_probe', context=context)
+        node.create_timer(0.01, lambda: ticks.append(1))
+        return node
+
+    for _ in range(5):  # each a context, executor and node of its own, left in order
+        with Driver(int(os.environ['ROS_DOMAIN_ID']), make_node, io.StringIO()) as driver:
+            assert wait_until(lambda: len(ticks) >= 3, timeout=10.0)
+            spinner = driver._spinner
+            driver.exit_code = 0
+        assert not spinner.is_alive()
+        ticks.clear()
+    # spin_until_shutdown itself returns at stop while the context is still up.
+    context = Context()
+    rclpy.init(context=context)
+    executor = SingleThreadedExecutor(context=context)
+    stop = threading.Event()
+    thread = threading.Thread(target=spin_until_shutdown,
+                              args=(executor, context, io.StringIO(), stop), daemon=True)
+    thread.start()
+    stop.set()
+    thread.join(timeout=2.0)
+    assert not thread.is_alive() and context.ok()
+    executor.shutdown(timeout_sec=2.0)
+    rclpy.try_shutdown(context=context)

@@ -11,7 +11,7 @@ import threading
 from typing import Callable, TextIO
 
 from attention_common.dds_memory import use_freed_payloads
-from attention_common.executors import make_executor
+from attention_common.executors import make_executor, release
 from attention_common.isolation import apply_to_this_process
 from attention_common.teardown_watchdog import TeardownWatchdog
 
@@ -45,16 +45,22 @@ class Driver:
         self.node = self._make_node(self._context)
         self._executor = make_executor(context=self._context)
         self._executor.add_node(self.node)
+        self._stop = threading.Event()
         self._spinner = threading.Thread(
-            target=spin_until_shutdown, args=(self._executor, self._context, self._err),
-            daemon=True)
+            target=spin_until_shutdown,
+            args=(self._executor, self._context, self._err, self._stop), daemon=True)
         self._spinner.start()
         return self
 
     def __exit__(self, *exc) -> None:
         import rclpy
         with TeardownWatchdog(exit_code=self.exit_code):
-            self._executor.shutdown(timeout_sec=2.0)
+            # The spinning thread ends first: shutting the EventsExecutor down while another
+            # thread spins it raised "Attempt to remove nonexistent callback" and then aborted
+            # the process (std::terminate) after a whole run had completed (seen once in 30
+            # study trials).
+            self._stop.set()
+            self._spinner.join(timeout=SPINNER_JOIN_S)
+            release(self._executor, self.node)
             self.node.destroy_node()
             rclpy.try_shutdown(context=self._context)
-            self._spinner.join(timeout=SPINNER_JOIN_S)

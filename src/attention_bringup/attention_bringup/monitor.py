@@ -232,16 +232,16 @@ class GraphMonitor(Node):
         return future.result() if future.done() else None
 
 
-def spin_until_shutdown(executor, context, err) -> int:
+def spin_until_shutdown(executor, context, err, stop=None) -> int:
     """
-    Spin ``executor`` until ``context`` shuts down; return how many callbacks raised.
+    Spin ``executor`` until ``context`` shuts down or ``stop`` is set; return how many raised.
 
     A callback that raises is reported on ``err`` with its traceback and the spinning goes on:
     a silent death of this thread would look like a stalled graph.
     """
     from rclpy.executors import ExternalShutdownException, ShutdownException
     errors = 0
-    while context.ok():
+    while context.ok() and not (stop is not None and stop.is_set()):
         try:
             executor.spin_once(timeout_sec=0.2)
         except (ExternalShutdownException, ShutdownException):
