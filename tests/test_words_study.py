@@ -6,7 +6,7 @@ from attention_bringup.experiment.plugins.words import (
     CHANCE, episodes_of, heldout_after, trial_measures)
 import pytest
 
-COLUMNS = ('agent_step', 'episode', 'session', 'heldout', 'position')
+COLUMNS = ('agent_step', 'episode', 'episode_step', 'session', 'heldout', 'position')
 
 
 def _progress(path, episodes):
@@ -19,7 +19,8 @@ def _progress(path, episodes):
             for i in range(steps):
                 step += 1
                 last = i == steps - 1
-                writer.writerow([step, index, 1, int(heldout), 1 if solved and last else -1])
+                writer.writerow([step, index, i + 1, 1, int(heldout),
+                                 1 if solved and last else -1])
 
 
 def test_success_counts_ended_episodes_of_each_part(tmp_path):
@@ -28,8 +29,12 @@ def test_success_counts_ended_episodes_of_each_part(tmp_path):
     _progress(path, [(30, False, False), (29, False, True), (10, False, True),
                      (10, False, False), (10, True, True), (10, True, False),
                      (5, True, False)])  # the last: cut by the budget, unsolved
-    found = trial_measures(episodes_of(path), heldout_after(100, 0.2))
+    found = trial_measures(episodes_of(path), heldout_after(100, 0.2), step_limit=10)
     assert found['episodes'] == 6  # the cut one did not end
+    # Episodes of the 10-step limit ended without a pick-up; shorter ones with one.
+    assert (found['late_training_picked'], found['heldout_picked']) == (0, 0)
+    found = trial_measures(episodes_of(path), heldout_after(100, 0.2), step_limit=12)
+    assert (found['late_training_picked'], found['heldout_picked']) == (2, 2)
     assert (found['late_training_solved'], found['late_training_episodes']) == (1, 2)
     assert (found['heldout_solved'], found['heldout_episodes']) == (1, 2)
     assert found['heldout_success'] == 0.5 and found['late_training_success'] == 0.5
@@ -74,3 +79,4 @@ def test_the_report_compares_the_arms_on_held_out_success(tmp_path):
     words.write_report(spec, result, by_arm, {'log': []})
     text = (tmp_path / 'r.md').read_text()
     assert '`words` vs `plain`' in text and '24/30' in text and 'Chance' in text
+    assert 'ended by a pick-up' in text

@@ -44,7 +44,8 @@ def episodes_of(path: Path) -> List[dict]:
                 key = (row['session'], row['episode'])
                 episode = episodes.setdefault(key, {
                     'first_step': int(row['agent_step']), 'heldout': row['heldout'] == '1',
-                    'solved': False})
+                    'solved': False, 'length': 0})
+                episode['length'] = max(episode['length'], int(row['episode_step']))
                 if row['position'] not in ('', None) and int(float(row['position'])) >= 1:
                     episode['solved'] = True
     except OSError:
@@ -57,8 +58,13 @@ def episodes_of(path: Path) -> List[dict]:
     return found
 
 
-def trial_measures(episodes: List[dict], after: int) -> dict:
-    """Return the trial's counts and rates (None for a part with no ended episode)."""
+def trial_measures(episodes: List[dict], after: int, step_limit: int = 0) -> dict:
+    """
+    Return the trial's counts and rates (None for a part with no ended episode).
+
+    ``step_limit``: the env's ``max_episode_steps``; an episode that ended before it ended with
+    a pick-up (of the target or not), one that reached it, with none.
+    """
     late = [e for e in episodes if e['ended'] and not e['heldout']
             and e['first_step'] >= after * 0.75]
     held = [e for e in episodes if e['ended'] and e['heldout']]
@@ -66,7 +72,11 @@ def trial_measures(episodes: List[dict], after: int) -> dict:
     def rate(part):
         return sum(e['solved'] for e in part) / len(part) if part else None
 
+    def picked(part):
+        return sum(1 for e in part if step_limit and e['length'] < step_limit - 1)
+
     return {'episodes': sum(e['ended'] for e in episodes),
+            'late_training_picked': picked(late), 'heldout_picked': picked(held),
             'late_training_episodes': len(late),
             'late_training_solved': sum(e['solved'] for e in late),
             'late_training_success': rate(late),
@@ -80,7 +90,8 @@ def measure(record: dict, run_dir: Path) -> dict:
     except ParamsFileError:
         env = {}
     after = int(env.get('heldout_after') or record['budget'])
-    record['words'] = trial_measures(episodes_of(run_dir / PROGRESS_FILE), after)
+    record['words'] = trial_measures(episodes_of(run_dir / PROGRESS_FILE), after,
+                                     int(env.get('max_episode_steps') or 0))
     return record
 
 
@@ -106,7 +117,10 @@ def analyse(spec: Spec, by_arm: Mapping, context: Mapping) -> dict:
             arm_result[name + '_per_trial'] = values
         solved = sum(r['words']['heldout_solved'] for r in records)
         episodes = sum(r['words']['heldout_episodes'] for r in records)
+        picked = sum(r['words'].get('heldout_picked', 0) for r in records)
         arm_result['heldout_pooled'] = stats.proportion(solved, episodes)
+        arm_result['heldout_picked'] = stats.proportion(picked, episodes)
+        arm_result['target_among_picked'] = stats.proportion(solved, picked)
         arms[arm.name] = arm_result
     comparisons = []
     for comparison in spec.comparisons:
@@ -130,6 +144,8 @@ def write_report(spec: Spec, result: dict, by_arm: Mapping, context: Mapping) ->
     rows = [[f'`{name}`', found['text'] or found['condition'], found['trials'],
              markdown.mean_interval(found['heldout_success']),
              f'{found["heldout_pooled"]["k"]}/{found["heldout_pooled"]["n"]}',
+             f'{found["heldout_picked"]["k"]}/{found["heldout_picked"]["n"]}',
+             markdown.num(found['target_among_picked']['rate']),
              markdown.mean_interval(found['late_training_success'])]
             for name, found in arms.items()]
     compared = [[f'`{c["arm"]}` vs `{c["baseline"]}`', markdown.num(c['difference']),
@@ -147,6 +163,7 @@ def write_report(spec: Spec, result: dict, by_arm: Mapping, context: Mapping) ->
         f'{result["chance"]:.2f}. Success is a mean over trials of each trial\'s rate, with '
         'its 95 % t interval; "pooled" counts every held-out episode of the arm.', '',
         *markdown.table(['arm', 'what', 'trials', 'held-out success', 'held-out pooled',
+                         'held-out episodes ended by a pick-up', 'the target, of those',
                          'late-training success'], rows), '',
         '## Comparisons (held-out success)', '',
         *markdown.table(['comparison', 'difference', 'Hedges g', 'Welch p'], compared), '',
