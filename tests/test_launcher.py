@@ -347,17 +347,23 @@ def test_fetch_runs_on_every_node_by_name_and_says_each_mission(tmp_path):
     assert metrics['pairing/with_saliency'] > 0  # the words grounded in the room's objects
 
 
-@pytest.mark.topics
-def test_language_input_acts_on_each_steps_saliency_image(tmp_path):
-    """--condition language_input (issue 25): H reads the frame and its saliency image."""
-    run_dir, steps = tmp_path / 'run', 120
+def _fetch_run(run_dir: Path, condition: str, steps: int) -> dict:
+    """Run Fetch in ``condition`` to its budget; return its summary."""
     result = subprocess.run(
-        [LAUNCHER, '--task', 'fetch', '--condition', 'language_input', '--steps', str(steps),
+        [LAUNCHER, '--task', 'fetch', '--condition', condition, '--steps', str(steps),
          '--seed', '5', '--run-dir', str(run_dir), '--quiet'],
         capture_output=True, text=True, timeout=240)
     assert result.returncode == 0, result.stderr[-4000:]
     summary = _read_json(run_dir / 'summary.json')
     assert summary['status'] == 'completed' and summary['steps'] == steps
+    return summary
+
+
+@pytest.mark.topics
+def test_language_input_acts_on_each_steps_saliency_image(tmp_path):
+    """--condition language_input (issue 25): H reads the frame and its saliency image."""
+    run_dir, steps = tmp_path / 'run', 120
+    summary = _fetch_run(run_dir, 'language_input', steps)
     params = yaml.safe_load((run_dir / 'params.yaml').read_text())
     assert params['tamer_node']['ros__parameters']['input_image'] == 'both'
     assert 'input_image both' in (run_dir / 'logs' / 'tamer_node.log').read_text()
@@ -375,14 +381,8 @@ def test_language_input_acts_on_each_steps_saliency_image(tmp_path):
 @pytest.mark.topics
 def test_the_text_conditioned_peer_reads_each_mission(tmp_path):
     """--condition text_film (issue 25's peer): H reads the words, no saliency image made."""
-    run_dir, steps = tmp_path / 'run', 120
-    result = subprocess.run(
-        [LAUNCHER, '--task', 'fetch', '--condition', 'text_film', '--steps', str(steps),
-         '--seed', '5', '--run-dir', str(run_dir), '--quiet'],
-        capture_output=True, text=True, timeout=240)
-    assert result.returncode == 0, result.stderr[-4000:]
-    summary = _read_json(run_dir / 'summary.json')
-    assert summary['status'] == 'completed' and summary['steps'] == steps
+    run_dir = tmp_path / 'run'
+    summary = _fetch_run(run_dir, 'text_film', 120)
     assert 'text film' in (run_dir / 'logs' / 'tamer_node.log').read_text()
     assert summary['message_counts'].get('saliency', 0) == 0  # words, not images
     logged = [json.loads(line) for line in

@@ -252,16 +252,9 @@ def test_cached_features_give_the_same_h_as_the_image_path(route_frames):
                               atol=1e-6)
 
 
-def _taught_by_the_saliency_image(route_frames, streams):
-    """Train H where one frame's right action is named only by its saliency image (A: 0, B: 1)."""
-    torch.manual_seed(0)
-    model = HModel(16, encoder=load_encoder(DEFAULT_ENCODER), num_actions=4, streams=streams)
+def _greedy_after_teaching(model, contexts) -> list:
+    """Teach H that action 0 is right in ``contexts[0]`` and action 1 in ``contexts[1]``."""
     learner = Learner(model, 3e-3, alpha=0.0, max_grad_norm=1.0)
-    with torch.no_grad():
-        frame, named_a, named_b = model.features(to_input(route_frames[[0, 5, 9]]))
-    contexts = [torch.cat([frame, named_a]), torch.cat([frame, named_b])]
-    if streams == 1:
-        contexts = [frame, frame]  # H sees the frame only: the words never reach it
     states, actions, h = [], [], []
     for context, right in ((0, 0), (1, 1)):
         for action in range(4):
@@ -271,14 +264,22 @@ def _taught_by_the_saliency_image(route_frames, streams):
     for _ in range(300):
         learner.train_step(make_batch(torch.stack(states), actions=actions, h=h))
     with torch.no_grad():
-        return [int(model.from_features(c.unsqueeze(0)).argmax()) for c in contexts]
+        return model.from_features(torch.stack(contexts)).argmax(dim=1).tolist()
 
 
 def test_with_both_images_h_acts_on_what_the_saliency_image_names(route_frames):
     """input_image both (language_input): the same frame, two utterances, two right actions."""
-    assert _taught_by_the_saliency_image(route_frames, streams=2) == [0, 1]
-    first, second = _taught_by_the_saliency_image(route_frames, streams=1)
-    assert first == second  # on the frame alone the two cases are one state
+    torch.manual_seed(0)
+    encoder = load_encoder(DEFAULT_ENCODER)
+    model = HModel(16, encoder=encoder, num_actions=4, streams=2)
+    with torch.no_grad():
+        frame, named_a, named_b = model.features(to_input(route_frames[[0, 5, 9]]))
+    both = [torch.cat([frame, named_a]), torch.cat([frame, named_b])]
+    assert _greedy_after_teaching(model, both) == [0, 1]
+    torch.manual_seed(0)  # H on the frame alone: the words never reach it, one state
+    first, second = _greedy_after_teaching(HModel(16, encoder=encoder, num_actions=4),
+                                           [frame, frame])
+    assert first == second
 
 
 def test_film_h_acts_on_what_the_words_name(route_frames):
@@ -286,7 +287,6 @@ def test_film_h_acts_on_what_the_words_name(route_frames):
     from tamer_node.words import bag_of_words
     torch.manual_seed(0)
     model = HModel(16, encoder=load_encoder(DEFAULT_ENCODER), num_actions=4, text_size=64)
-    learner = Learner(model, 3e-3, alpha=0.0, max_grad_norm=1.0)
     with torch.no_grad():
         frame = model.features(to_input(route_frames[:1]))[0]
     contexts = [torch.cat([frame, bag_of_words(text, 64)])
@@ -294,16 +294,7 @@ def test_film_h_acts_on_what_the_words_name(route_frames):
     with torch.no_grad():  # FiLM starts as no change: the words matter only once learned
         before = model.from_features(torch.stack(contexts))
     assert torch.equal(before[0], before[1])
-    states, actions, h = [], [], []
-    for context, right in ((0, 0), (1, 1)):
-        for action in range(4):
-            states.append(contexts[context])
-            actions.append(action)
-            h.append(1.0 if action == right else -1.0)
-    for _ in range(300):
-        learner.train_step(make_batch(torch.stack(states), actions=actions, h=h))
-    with torch.no_grad():
-        assert model.from_features(torch.stack(contexts)).argmax(dim=1).tolist() == [0, 1]
+    assert _greedy_after_teaching(model, contexts) == [0, 1]
 
 
 def test_a_bag_of_words_tells_missions_apart_and_ignores_case():

@@ -2,8 +2,9 @@
 Fetch, where only the words say the goal (``docs/results_words.md``, issue 25): the plug-in.
 
 Every episode draws a room and a target among its four objects, said only in words. From
-``heldout_after`` (the last ``heldout_fraction`` of the budget) on, every episode has a held-out
-layout and one of the six held-out colour-kind pairs as its target. A trial's measures come from
+``heldout_after`` on (the last ``heldout_fraction`` of the budget; ``parameters`` are the doorkey
+plug-in's), every episode has a held-out layout and one of the six held-out colour-kind pairs
+as its target. A trial's measures come from
 its ``progress.csv`` (``position`` is 1 once the target is in hand): the success of the episodes
 that ended in the last quarter of the training part (new rooms, trained pairs), and of the
 held-out ones. Each arm's trials give one rate each; arms are compared on the held-out rate with
@@ -15,6 +16,7 @@ from pathlib import Path
 from typing import Dict, List, Mapping
 
 from attention_bringup.experiment import markdown, stats
+from attention_bringup.experiment.plugins.doorkey import heldout_after, parameters  # noqa: F401
 from attention_bringup.experiment.spec import Spec
 from attention_bringup.params import load_params_file, node_params, ParamsFileError
 from attention_common.run_files import PARAMS_FILE, PROGRESS_FILE
@@ -22,17 +24,6 @@ from attention_common.run_files import PARAMS_FILE, PROGRESS_FILE
 OBJECTS = 4
 CHANCE = 1.0 / OBJECTS
 """A learner that picks up one of the room's four objects at random, every episode."""
-
-
-def heldout_after(steps: int, fraction: float) -> int:
-    if not 0.0 < fraction < 1.0:
-        raise ValueError(f'heldout_fraction must be in (0, 1), got {fraction}')
-    return int(round(steps * (1.0 - fraction)))
-
-
-def parameters(spec: Spec) -> dict:
-    return {'env_node': {'heldout_after': heldout_after(spec.budget,
-                                                        spec.settings['heldout_fraction'])}}
 
 
 def episodes_of(path: Path) -> List[dict]:
