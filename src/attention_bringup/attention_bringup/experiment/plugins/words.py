@@ -148,7 +148,8 @@ def write_report(spec: Spec, result: dict, by_arm: Mapping, context: Mapping) ->
         f'Written by `{result["command"]}` from the result files in `{spec.out}` (one per '
         'trial; the command resumes). Do not edit by hand.', '',
         f'Each trial: {result["budget"]} agent steps of `attention_train --task fetch` through '
-        f'the real graph, seeds {", ".join(map(str, result["seeds"]))} (never tuned on), from '
+        f'the real graph, seeds {", ".join(map(str, result["seeds"]))} (never tuned on; '
+        '"trials" says how many have run so far), from '
         f'step {after} on every episode with a held-out layout and a held-out colour-kind pair '
         f'as its target. Chance, for a learner that picks up one of the four objects at random: '
         f'{result["chance"]:.2f}. Success is a mean over trials of each trial\'s rate, with '
