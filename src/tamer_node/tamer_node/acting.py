@@ -23,6 +23,7 @@ import numpy as np
 from tamer_node.config import TamerConfig, WAITS_FOR_SALIENCY
 from tamer_node.history import holds, StepHistory
 from tamer_node.model import HModel, preprocess, to_input
+from tamer_node.pairing import both_item
 from tamer_node.persistence import (
     KIND_ACTION, KIND_OBSERVATION, KIND_SALIENCY, KIND_TAKEN, StepJournal)
 from tamer_node.words import bag_of_words
@@ -285,25 +286,6 @@ class ActingPath:
         self.history.put_text(record.stamp, self.text)
         return torch.cat([features, self.text])
 
-    def both_features(self, record) -> torch.Tensor:
-        """
-        Return the step's (2240,) input with ``input_image: both``: frame, saliency features.
-
-        Each image's features are computed once and kept in the step's record (the learner
-        trains on them); a step without a saliency image has its observation stand in for it.
-        """
-        parts = []
-        for kind in ('observation', 'saliency'):
-            image = record.image(kind)
-            if image is None:
-                kind, image = 'observation', record.observation
-            features = record.features(kind)
-            if features is None:
-                features = self.actor.features(image)
-                self.history.put_features(kind, record.stamp, features)
-            parts.append(features)
-        return torch.cat(parts)
-
     def _preprocess(self, kind: str, rgb: np.ndarray) -> torch.Tensor:
         try:
             return torch.from_numpy(preprocess(rgb, self._frame_shape))
@@ -325,8 +307,8 @@ class ActingPath:
         held = self._held if holds(self._decision, record.stamp,
                                    self.config.decision_period_s) else None
         if self.config.input_image == 'both':  # the frame's features, then its saliency's
-            values = self.actor.values_on_features(
-                self._with_text(record, self.both_features(record)))
+            values = self.actor.values_on_features(  # each image encoded once, as learned
+                self._with_text(record, both_item(record, self.history, self.actor.model)))
         elif self.actor.model.freeze_encoder:
             image = record.image(kind) if image is None else image
             features = self.actor.features(image)  # encoded once: acting and learning share it

@@ -85,10 +85,10 @@ def companion_kind(input_image: str) -> str:
 
 def both_item(record: StepRecord, history: StepHistory, model: HModel) -> torch.Tensor:
     """
-    Return a step's (2240,) state with ``input_image: both``, as the actor read it.
+    Return a step's (2240,) state with ``input_image: both``, for the actor and the learner.
 
-    Its observation stands in for a saliency image that never came
-    (``ActingPath.both_features``).
+    Each image's features are computed once and cached in the history; the observation stands
+    in for a saliency image that never came.
     """
     saliency = 'saliency' if record.saliency is not None else 'observation'
     return torch.cat([stored_item(record, 'observation', history, model),
