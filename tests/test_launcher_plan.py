@@ -577,6 +577,10 @@ def test_a_person_s_session_is_recorded_unless_asked_not_to(tmp_path, synthetic,
     assert env.get('wait_position_subscribers', 1) == 1 + records
     assert feedback['wait_feedback_subscribers'] == 2 + records
     assert feedback['wait_utterance_subscribers'] == 2 + records
+    # The learners' outputs (actions, receipts, credit, metrics, saliency) wait for it too.
+    for node in ('saliency_node', 'tamer_node'):
+        expected = 'session_recorder' if records else ''
+        assert plan.effective[node].get('wait_for_recorder', '') == expected, node
     if records:
         argv = recorders[0].argv
         assert argv[0] == str(BIN / 'session_recorder')

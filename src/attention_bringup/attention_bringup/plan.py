@@ -351,6 +351,8 @@ def launcher_overrides(options: LaunchOptions, seed: int, run_dir: Path,
             int(env.get('wait_position_subscribers', 1)) + 1)
         overrides['feedback_node']['wait_feedback_subscribers'] += 1
         overrides['feedback_node']['wait_utterance_subscribers'] += 1
+        for node in ('saliency_node', 'tamer_node'):  # their outputs wait for it to match
+            overrides[node]['wait_for_recorder'] = RECORDER
     return {node: values for node, values in overrides.items() if values}
 
 

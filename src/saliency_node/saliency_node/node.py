@@ -18,6 +18,7 @@ from attention_common import qos, topics
 from attention_common.image_codec import image_to_numpy, ImageFormatError, numpy_to_image
 from attention_common.node_main import run_node, StartupError
 from attention_common.parameters import dataclass_specs
+from attention_common.recorder_gate import RecorderGate
 from attention_common.stamps import NS_PER_S, stamp_to_ns, StampGuard
 from diagnostic_msgs.msg import DiagnosticArray
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
@@ -80,6 +81,9 @@ class SaliencyNode(Node):
 
         self._saliency_pub = self.create_publisher(Image, topics.SALIENCY, qos.FRAMES_WRITER)
         self._mask_pub = self.create_publisher(Image, topics.SALIENCY_MASK, qos.FRAMES_WRITER)
+        self._gate = RecorderGate(self, self.settings.wait_for_recorder,
+                                  (self._saliency_pub, self._mask_pub),
+                                  self.settings.wait_for_recorder_s)
         self.create_subscription(Image, topics.OBSERVATION, self._on_observation, qos.FRAMES)
         self.create_subscription(String, topics.UTTERANCE, self._on_utterance, qos.HUMAN)
         self.create_subscription(DiagnosticArray, topics.UTTERANCE_STAMPED,
@@ -197,9 +201,11 @@ class SaliencyNode(Node):
             image, mask = self._maker.render(frame, scene, named, self.config)
             if image is None:
                 continue
-            self._saliency_pub.publish(self._image(image, 'rgb8', header))
-            if self.settings.publish_mask and self._mask_pub.get_subscription_count():
-                self._mask_pub.publish(self._image(mask * 255, 'mono8', header))
+            self._gate.publish(self._saliency_pub, self._image(image, 'rgb8', header))
+            # (a mask is rendered only for a reader; while the gate holds, the recorder is one)
+            if self.settings.publish_mask and (not self._gate.is_open
+                                               or self._mask_pub.get_subscription_count()):
+                self._gate.publish(self._mask_pub, self._image(mask * 255, 'mono8', header))
             self.counters['saliency_published'] += 1
 
     @staticmethod

@@ -10,6 +10,7 @@ import functools
 from pathlib import Path
 from typing import Mapping
 
+from attention_common.recorder_gate import RECORDER_WAIT_S
 from attention_common.stamps import MAX_STAMP_JUMP_S, NS_PER_S
 from attention_common.utterance import MAX_UTTERANCE_CHARS
 from attention_tasks.task import DEFAULT_TASK, load_task, Task
@@ -18,7 +19,8 @@ from saliency_node.manifest import DEFAULT_MANIFEST
 from saliency_node.matching import method_from_name
 from saliency_node.saliency import SaliencyConfig
 
-START_ONLY = ('task', 'templates_manifest', 'status_period')
+START_ONLY = ('task', 'templates_manifest', 'status_period', 'wait_for_recorder',
+              'wait_for_recorder_s')
 """Read at start only; every other parameter is settable at run time."""
 
 
@@ -76,6 +78,13 @@ class Settings(SaliencyConfig):
     """Also publish the mask (mono8, 0 or 255) on saliency_mask."""
     status_period: float = 30.0
     """Wall seconds between the log lines of counts. Read at start only."""
+    wait_for_recorder: str = ''
+    """Start-up: the node name of a session recorder (the launcher's session_recorder when it
+    records; '' = none). No saliency image or mask goes out until that node is matched on
+    both topics, so the bag misses none; they wait, in order. Read at start only."""
+    wait_for_recorder_s: float = RECORDER_WAIT_S
+    """Longest start-up wait for that recorder, in wall seconds; then publish anyway, with a
+    warning. Read at start only."""
 
     def __post_init__(self):
         """Check every value, numbers made int or float; ``ValueError`` says which and why."""
@@ -102,6 +111,10 @@ class Settings(SaliencyConfig):
         self.max_stamp_jump = _number('max_stamp_jump', self.max_stamp_jump, 1e-3)
         _flag('publish_mask', self.publish_mask)
         self.status_period = _number('status_period', self.status_period, 0.001)
+        if not isinstance(self.wait_for_recorder, str):
+            raise ValueError(
+                f'wait_for_recorder must be a node name, got {self.wait_for_recorder!r}')
+        self.wait_for_recorder_s = _number('wait_for_recorder_s', self.wait_for_recorder_s, 0.0)
 
     @classmethod
     def from_values(cls, values: Mapping) -> 'Settings':

@@ -4,6 +4,7 @@ from dataclasses import dataclass
 from typing import Dict
 
 from attention_common.parameters import field_docs as _field_docs
+from attention_common.recorder_gate import RECORDER_WAIT_S
 from attention_common.stamps import MAX_STAMP_JUMP_S
 from attention_tasks.task import DEFAULT_TASK, load_task
 
@@ -137,6 +138,13 @@ class TamerConfig:
     (feedback_logged) goes out: 'grouped' (one fdatasync for the lines logged together, as
     soon as the disk thread has nothing more queued or the oldest waited 0.1 s), 'every' (one
     per line), 'off' (flushed to the OS only: survives a kill -9, not a power cut)."""
+    wait_for_recorder: str = ''
+    """Start-up: the node name of a session recorder (the launcher's session_recorder when it
+    records; '' = none). No action, receipt, credit or metrics goes out until that node is
+    matched on each of those topics, so the bag misses none; they wait, in order."""
+    wait_for_recorder_s: float = RECORDER_WAIT_S
+    """Longest start-up wait for that recorder, in wall seconds; then publish anyway, with a
+    warning naming the topics it had not matched."""
 
     def validate(self) -> None:
         """Raise ValueError naming the first field with an impossible value."""
@@ -189,6 +197,7 @@ class TamerConfig:
             'learner_nice': 0 <= self.learner_nice <= 19,
             'pace_updates': self.pace_updates >= 0.0,
             'pace_max_s': self.pace_max_s >= 0.0,
+            'wait_for_recorder_s': self.wait_for_recorder_s >= 0.0,
         }
         for name, ok in checks.items():
             if not ok:

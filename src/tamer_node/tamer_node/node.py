@@ -25,6 +25,7 @@ from attention_common.image_codec import image_to_numpy, ImageFormatError
 from attention_common.joy_actions import action_to_joy, joy_to_action, JoyActionError
 from attention_common.node_main import Closing, run_node, StartupError
 from attention_common.parameters import declare_parameters
+from attention_common.recorder_gate import RecorderGate
 from attention_common.stamps import ns_to_stamp, stamp_to_ns
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Vector3Stamped
@@ -71,6 +72,10 @@ class TamerNode(Closing, Node):
         self.credit_pub = self.create_publisher(DiagnosticArray, topics.FEEDBACK_CREDIT,
                                                 qos.HUMAN)
         self.agent.worker.on_credit = self._publish_credit
+        self._gate = RecorderGate(
+            self, self.config.wait_for_recorder,
+            (self.action_pub, self.metrics_pub, self.logged_pub, self.credit_pub),
+            self.config.wait_for_recorder_s)
         self.create_subscription(Image, topics.OBSERVATION, self._on_observation, qos.FRAMES)
         self.create_subscription(Image, topics.SALIENCY, self._on_saliency, qos.FRAMES)
         self.create_subscription(Joy, topics.ACTION_TAKEN, self._on_action_taken, qos.ACTIONS)
@@ -181,7 +186,7 @@ class TamerNode(Closing, Node):
         axes, buttons = action_to_joy(self.agent.task.joy_action(action))
         joy.axes = [float(a) for a in axes]
         joy.buttons = [int(b) for b in buttons]
-        self.action_pub.publish(joy)
+        self._gate.publish(self.action_pub, joy)
 
     # Feedback path. Each message's DDS identity (the publisher's sequence number and its
     # source time) is logged with it, so a publisher (the trainer console) can tell from the
@@ -213,7 +218,7 @@ class TamerNode(Closing, Node):
                          for key in keys if entry.get(key) is not None]
         array = DiagnosticArray(status=[status])
         array.header.stamp = self.get_clock().now().to_msg()
-        self.logged_pub.publish(array)
+        self._gate.publish(self.logged_pub, array)
 
     def _publish_values(self) -> None:
         """After an action went out: H of every action and the one taken, while anyone listens."""
@@ -248,7 +253,7 @@ class TamerNode(Closing, Node):
                           for sample in samples]
         array = DiagnosticArray(status=[status])
         array.header.stamp = ns_to_stamp(event.now if event.now is not None else event.stamp)
-        self.credit_pub.publish(array)
+        self._gate.publish(self.credit_pub, array)
 
     def _log(self, level: str, text: str) -> None:
         # One call site per severity: rclpy's logger refuses another severity from the same
@@ -271,7 +276,7 @@ class TamerNode(Closing, Node):
                          for key, value in sorted(values.items())]
         array = DiagnosticArray(status=[status])
         array.header.stamp = self.get_clock().now().to_msg()
-        self.metrics_pub.publish(array)
+        self._gate.publish(self.metrics_pub, array)
         self.agent.write_metrics_row(values)
 
     def on_close(self) -> None:
