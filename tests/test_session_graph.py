@@ -136,6 +136,9 @@ def test_another_condition_learns_from_the_same_recorded_feedback(recorded_run, 
     params = yaml.safe_load((tmp_path / 'blind' / 'replay_params.yaml').read_text())
     assert params['tamer_node']['ros__parameters']['input_image'] == 'saliency'
     assert params['saliency_node']['ros__parameters']['mode'] == 'blind_agent'
+    # The session waited for its recorder; a replay has none, so its nodes must not wait.
+    assert all(params[node]['ros__parameters'].get('wait_for_recorder', '') == ''
+               for node in ('saliency_node', 'tamer_node'))
     assert (summary['condition'], summary['session_condition']) == ('blind_obs', 'language')
     assert summary['unanswered'] == 0 and summary['feedback_same_step']['same'] > 0
 

@@ -27,8 +27,9 @@ REPLAYED_NODES = ('saliency_node', 'tamer_node')
 PARAMS_FILE = 'replay_params.yaml'
 OPTIONS_FILE = 'replay_options.json'
 STEPS_FILE = 'replay_steps.csv'
-SESSION_KEYS = ('run_dir', 'resume')
-"""Session parameters a replay never takes over (its learner is a fresh one, elsewhere)."""
+SESSION_KEYS = ('run_dir', 'resume', 'wait_for_recorder')
+"""Session parameters a replay never takes over (its learner is a fresh one, elsewhere, and
+nothing records it)."""
 
 
 @dataclass
