@@ -366,6 +366,7 @@ def test_language_input_acts_on_each_steps_saliency_image(tmp_path):
     summary = _fetch_run(run_dir, 'language_input', steps)
     params = yaml.safe_load((run_dir / 'params.yaml').read_text())
     assert params['tamer_node']['ros__parameters']['input_image'] == 'both'
+    assert params['saliency_node']['ros__parameters']['mode'] == 'mask'
     assert 'input_image both' in (run_dir / 'logs' / 'tamer_node.log').read_text()
     metrics = summary['metrics']
     # Each step was answered once its saliency image came (lockstep waits for it); a step

@@ -34,7 +34,7 @@ CONDITION_TABLE = {
     'blind_saliency': ('blind_agent', False, 10.0, 1e-4, 'observation'),
     'language_every_step': ('language', True, 0.0, 1e-4, 'observation'),
     'hidden_agent': ('hidden_agent', False, 10.0, 0.0, 'saliency'),
-    'language_input': ('language', False, 10.0, 0.0, 'both'),  # issue 25, beside the six
+    'language_input': ('mask', False, 10.0, 0.0, 'both'),  # issue 25, beside the six
     'text_film': ('off', True, 10.0, 0.0, 'observation'),  # issue 25, the peer
 }
 

@@ -244,6 +244,15 @@ def test_faded_dims_instead_of_blurring(on_ladder, maker):
     assert np.abs(image[~kept].astype(int) - dimmed[~kept]).max() <= 1
 
 
+def test_mask_mode_draws_the_mask_itself_white_on_black(on_ladder, maker):
+    frame, scene, _ = on_ladder
+    image, mask = maker.render(frame, scene, ('skull',), SaliencyConfig('mask'))
+    language, same = maker.render(frame, scene, ('skull',), SaliencyConfig('language'))
+    assert np.array_equal(mask, same) and mask.any() and not mask.all()
+    assert image.shape == frame.shape and image.dtype == np.uint8
+    assert (image[mask > 0] == 255).all() and (image[mask == 0] == 0).all()
+
+
 def test_off_renders_nothing(on_ladder, maker):
     frame, scene, _ = on_ladder
     assert maker.render(frame, scene, ('ladder',), SaliencyConfig('off')) == (None, None)

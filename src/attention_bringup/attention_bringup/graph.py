@@ -22,8 +22,9 @@ THESIS_CONDITIONS = (
 )
 CONDITIONS = THESIS_CONDITIONS + ('language_input', 'text_film')
 """Every condition a run can take: the thesis's six, then those added beside them (issue 25:
-language_input, H sees the saliency image beside the frame when it acts; text_film, the peer,
-H's features conditioned on the utterance's words as BabyAI's agents are)."""
+language_input, H sees the saliency image (the grounded mask) beside the frame when it acts;
+text_film, the peer, H's features conditioned on the utterance's words as BabyAI's agents
+are)."""
 DEFAULT_CONDITION = 'language'
 
 

@@ -18,6 +18,10 @@ Modes (section 3 and chapter 5 of the thesis):
   blur leaves no agent-shaped smudge behind.
 - ``faded``: the ``language`` mask without blur, the rest dimmed (the variant of Figure 3.3 that
   the thesis rejected).
+- ``mask``: the ``language`` mask itself as the image, white on black (not the thesis's: for a
+  learner that reads the saliency image as an input, ``language_input``; through the frozen
+  grey encoder a radius-3 blur hardly tells the named object from the others,
+  tests/benchmarks/fetch_capacity.py).
 - ``off``: no saliency images.
 """
 
@@ -30,7 +34,7 @@ import numpy as np
 
 from saliency_node.matching import ObjectModel, Scene, SceneMatcher
 
-MODES = ('language', 'blind_agent', 'hidden_agent', 'faded', 'off')
+MODES = ('language', 'blind_agent', 'hidden_agent', 'faded', 'mask', 'off')
 BLUR_RADIUS = 3
 """The thesis's Gaussian blur radius in pixels: the one place of the default."""
 
@@ -161,4 +165,6 @@ class SaliencyMaker:
         if mode == 'faded':
             dimmed = cv2.convertScaleAbs(frame, alpha=config.fade)
             return compose(frame, keep, dimmed), keep
+        if mode == 'mask':
+            return np.repeat(keep[:, :, None] * np.uint8(255), 3, axis=2), keep
         return compose(frame, keep, gaussian_blur(frame, config.blur_radius, config.sigma)), keep

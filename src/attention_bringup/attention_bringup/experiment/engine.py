@@ -60,14 +60,24 @@ def trial_parameters(spec: Spec) -> Dict[str, dict]:
 
 def write_params(spec: Spec) -> Optional[Path]:
     """Write the parameters every trial gets into ``out``; None if there are none."""
-    parameters = trial_parameters(spec)
+    return _write_params(Path(spec.out) / spec.params_file, trial_parameters(spec),
+                         f'# Written by the experiment engine ({spec.name!r}): every trial of '
+                         'the study.')
+
+
+def write_arm_params(spec: Spec, arm: Arm) -> Optional[Path]:
+    """Write an arm's own parameters into ``<out>/<arm>_params.yaml``; None if it has none."""
+    return _write_params(Path(spec.out) / f'{arm.name}_params.yaml', arm.parameters,
+                         f'# Written by the experiment engine ({spec.name!r}): the trials of '
+                         f'arm {arm.name!r}, on top of the parameters of every trial.')
+
+
+def _write_params(path: Path, parameters, header: str) -> Optional[Path]:
     if not parameters:
         return None
-    path = Path(spec.out) / spec.params_file
     path.parent.mkdir(parents=True, exist_ok=True)
-    nodes = {node: {'ros__parameters': values} for node, values in parameters.items()}
-    path.write_text(f'# Written by the experiment engine ({spec.name!r}): every trial of the '
-                    f'study.\n{yaml.safe_dump(nodes, sort_keys=False)}')
+    nodes = {node: {'ros__parameters': dict(values)} for node, values in parameters.items()}
+    path.write_text(f'{header}\n{yaml.safe_dump(nodes, sort_keys=False)}')
     return path
 
 
@@ -76,12 +86,15 @@ def plan(spec: Spec, retry_crashed: bool = False, params: Optional[Path] = None
     """Return (trials to run, result files kept), seed by seed across arms (balanced)."""
     measure = getattr(plugin_of(spec), 'measure', None)
     pending, kept = [], []
+    arm_params = {arm.name: write_arm_params(spec, arm) for arm in spec.arms}
     for seed in spec.seeds:
         for arm in spec.arms:
+            own = arm_params[arm.name]
             jobs, files = runner.plan_trials(
                 [arm.condition], 0, spec.budget, arm_out(spec, arm),
                 arm_runs(spec, arm).resolve(), retry_crashed,
-                spec.trial_args(arm, params.resolve() if params else None), seeds=[seed],
+                spec.trial_args(arm, params.resolve() if params else None,
+                                own.resolve() if own else None), seeds=[seed],
                 measure=measure, arm=arm.name)
             pending += jobs
             kept += files

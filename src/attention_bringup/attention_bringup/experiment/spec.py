@@ -14,7 +14,8 @@ file stem (``attention_experiment teaching``). Its fields:
 - ``launcher_args`` (every trial's ``attention_train`` options), ``parameters`` (node
   parameters every trial gets, written to ``<out>/<params_file>`` and passed as
   ``--params-file``);
-- ``arms``: each ``{name, condition, launcher_args, text}``;
+- ``arms``: each ``{name, condition, launcher_args, parameters, text}`` (an arm's
+  ``parameters`` go on top of the spec's, in ``<out>/<arm>_params.yaml``);
 - ``comparisons``: each ``{arm, baseline}``; ``measures``: what they compare;
   ``targets``: ``{arm: {...}}`` (read by the plug-in); ``settings``: anything else the plug-in
   reads.
@@ -44,6 +45,8 @@ class Arm:
     condition: str
     launcher_args: Tuple[str, ...] = ()
     text: str = ''
+    parameters: Mapping[str, Mapping[str, Any]] = field(default_factory=dict, hash=False)
+    """Node parameters of this arm's trials only (on top of the spec's ``parameters``)."""
 
 
 @dataclass(frozen=True)
@@ -94,17 +97,21 @@ class Spec:
     def select(self, arms: Optional[Sequence[str]] = None,
                seeds: Optional[Sequence[int]] = None, budget: Optional[int] = None,
                **more) -> 'Spec':
-        """Return the spec narrowed to ``arms`` (in the spec's order) and ``seeds``."""
+        """Return the spec narrowed to ``arms`` (in its order), ``seeds``, their comparisons."""
         chosen = self.arms if arms is None else tuple(
             self.arm(name) for name in dict.fromkeys(arms))
-        return replace(self, arms=chosen,
+        names = {arm.name for arm in chosen}
+        comparisons = tuple(c for c in self.comparisons if {c.arm, c.baseline} <= names)
+        return replace(self, arms=chosen, comparisons=comparisons,
                        seeds=self.seeds if seeds is None else tuple(int(s) for s in seeds),
                        budget=self.budget if budget is None else int(budget), **more)
 
-    def trial_args(self, arm: Arm, params_path: Optional[Path]) -> Tuple[str, ...]:
+    def trial_args(self, arm: Arm, params_path: Optional[Path],
+                   arm_params_path: Optional[Path] = None) -> Tuple[str, ...]:
         """Every ``attention_train`` option of a trial of ``arm`` but condition, seed, budget."""
         task = ('--task', self.task) if self.task else ()
-        params = ('--params-file', str(params_path)) if params_path is not None else ()
+        params = tuple(word for path in (params_path, arm_params_path) if path is not None
+                       for word in ('--params-file', str(path)))
         return task + tuple(self.launcher_args) + tuple(arm.launcher_args) + params
 
 
@@ -133,7 +140,7 @@ def _strings(value, where: str, name: str) -> Tuple[str, ...]:
 def _arm(entry, where: str) -> Arm:
     if not isinstance(entry, Mapping) or 'name' not in entry:
         raise SpecError(f'{where}: every arm needs a name')
-    unknown = set(entry) - {'name', 'condition', 'launcher_args', 'text'}
+    unknown = set(entry) - {'name', 'condition', 'launcher_args', 'parameters', 'text'}
     if unknown:
         raise SpecError(f'{where}: arm {entry["name"]}: unknown field(s) {sorted(unknown)}')
     condition = entry.get('condition', entry['name'])
@@ -142,7 +149,15 @@ def _arm(entry, where: str) -> Arm:
                         f'{", ".join(CONDITIONS)}')
     return Arm(str(entry['name']), condition,
                _strings(entry.get('launcher_args'), where, 'launcher_args'),
-               str(entry.get('text', '')))
+               str(entry.get('text', '')),
+               _parameters(entry.get('parameters'), f'{where}: arm {entry["name"]}'))
+
+
+def _parameters(value, where: str) -> Mapping[str, Mapping[str, Any]]:
+    value = value or {}
+    if not isinstance(value, Mapping) or not all(isinstance(v, Mapping) for v in value.values()):
+        raise SpecError(f'{where}: parameters must map node names to their parameters')
+    return {str(k): dict(v) for k, v in value.items()}
 
 
 REQUIRED = ('name', 'plugin', 'arms', 'seeds', 'budget', 'out', 'report', 'runs_dir')
@@ -183,10 +198,7 @@ def from_dict(data: Mapping, source: str = '') -> Spec:
             if name not in names:
                 raise SpecError(f'{where}: comparison names an unknown arm {name!r}')
         comparisons.append(Comparison(str(entry['arm']), str(entry['baseline'])))
-    parameters = data.get('parameters') or {}
-    if not isinstance(parameters, Mapping) or not all(
-            isinstance(v, Mapping) for v in parameters.values()):
-        raise SpecError(f'{where}: parameters must map node names to their parameters')
+    parameters = _parameters(data.get('parameters'), where)
     parallel = data.get('parallel', 1)
     if not isinstance(parallel, int) or parallel < 1:
         raise SpecError(f'{where}: parallel must be a positive integer')
@@ -197,7 +209,7 @@ def from_dict(data: Mapping, source: str = '') -> Spec:
         task=str(data.get('task') or ''), parallel=parallel, layout=layout,
         log=str(data.get('log', 'study_log.json')),
         launcher_args=_strings(data.get('launcher_args'), where, 'launcher_args'),
-        parameters={str(k): dict(v) for k, v in parameters.items()},
+        parameters=parameters,
         params_file=str(data.get('params_file', 'experiment_params.yaml')),
         comparisons=tuple(comparisons),
         measures=_strings(data.get('measures'), where, 'measures'),

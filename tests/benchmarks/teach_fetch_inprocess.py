@@ -1,0 +1,139 @@
+"""
+Teaching Fetch in one process: the real MiniGrid room, Fetch's teacher, TamerAgent, no ROS.
+
+The graph's loop one step after the other, as ``teach_doorkey_inprocess.py`` does for DoorKey,
+with the saliency node's work done here: each frame is matched and the mission ("pick up the
+<target>", said at every episode's start and in force all episode) rendered in ``--mode``
+(mask: language_input; language: its first, blurred design) for a learner with ``input_image``
+both. The teacher judges every action on time (stamped). ``--explore E``: on a share E of the
+steps the executed action is a random one (told to the agent as ``action_taken``, as
+attention_replay does), so it is judged too: the greedy learner otherwise never tries a
+pick-up in front of the target once pick-ups elsewhere taught it that they are bad.
+The settings are the words study's (8 x 8, four objects, 50 steps an episode, 1.5 updates a
+step); the last ``--heldout`` steps are on held-out rooms with held-out target pairs.
+
+Run: ``.venv/bin/python tests/benchmarks/teach_fetch_inprocess.py --seeds 900 901 --steps 10000
+[--mode mask|language|off] [--explore 0.1] [--set NAME=VALUE ...] [--out results.json]``.
+"""
+
+import argparse
+import json
+from pathlib import Path
+import sys
+import tempfile
+import time
+
+from fetch_capacity import EPISODE_STEPS, Views
+import numpy as np
+from teach_inprocess import parse_value
+
+
+def run_trial(seed: int, steps: int, heldout: int, mode: str, explore: float, overrides: dict,
+              workdir: Path) -> dict:
+    from attention_tasks.fetch.env import FetchEnv, FetchEnvConfig
+    from attention_tasks.gridworld import NUM_ACTIONS, PICKUP
+    from attention_tasks.fetch.world import mission
+    from env_node.status import Counters, parse_status, status_values
+    from feedback_node.judging import TeacherConfig
+    from feedback_node.task_teacher import load_knowledge, TaskTeacher
+    from saliency_node.saliency import SaliencyConfig
+    from tamer_node.agent import share_the_cpu, TamerAgent
+    from tamer_node.config import TamerConfig
+
+    share_the_cpu()
+    teacher = TaskTeacher(load_knowledge('fetch'), NUM_ACTIONS,
+                          TeacherConfig(utterance_interval=-1.0, seed=seed))
+    config = {'task': 'fetch', 'seed': seed, 'alpha': 0.0, 'update_rate_hz': 1.5,
+              'greedy_margin': 0.1, 'credit': 'step',
+              'input_image': 'observation' if mode == 'off' else 'both'}
+    config.update(overrides)
+    run_dir = workdir / f'seed{seed}'
+    agent = TamerAgent(TamerConfig(run_dir=str(run_dir), **config), run_dir)
+    agent.start()
+    env = FetchEnv(FetchEnvConfig(seed=seed, max_episode_steps=EPISODE_STEPS,
+                                  heldout_after=steps - heldout))
+    views = Views()
+    rendering = SaliencyConfig(mode=mode if mode != 'off' else 'language')
+    rng = np.random.default_rng(seed + 7)
+    counters = Counters()
+
+    def see(step):
+        values = parse_status(status_values(step, counters, False))
+        return teacher.on_step(teacher.see(step.sim_time_ns, values)).feedback
+
+    def act(step) -> int:
+        action = agent.on_observation(step.sim_time_ns, step.observation)
+        if mode != 'off':
+            frame = step.observation
+            scene = views.maker.observe(frame)
+            named = views.grounder.ground(mission(*step.state.target.split(' ', 1))).objects
+            image, _ = views.maker.render(frame, scene, named, rendering)
+            action = agent.on_saliency(step.sim_time_ns, image)
+        if explore > 0 and rng.random() < explore:
+            action = int(rng.integers(NUM_ACTIONS))
+            agent.on_action_taken(step.sim_time_ns, action)
+        return action
+
+    episodes = []  # (held out, picked, solved, started at step)
+    started = time.monotonic()
+    step = env.reset()
+    see(step)
+    begun = 0
+    for k in range(steps):
+        action = act(step)
+        step = env.step(action)
+        for judgement in see(step):
+            agent.on_feedback(judgement.h, 'stamped', judgement.stamp_ns)
+        if step.done:
+            episodes.append((bool(step.state.heldout), action == PICKUP and bool(
+                step.state.carrying), bool(step.state.fetched), begun))
+            step = env.reset()
+            begun = k + 1
+            see(step)
+    metrics = agent.metrics()
+    agent.close()
+    env.close()
+    held = [e for e in episodes if e[0]]
+    late = [e for e in episodes if not e[0] and e[3] >= steps - 2 * heldout]
+    return {'seed': seed, 'episodes': len(episodes), 'heldout_episodes': len(held),
+            'heldout_picked': sum(e[1] for e in held), 'heldout_solved': sum(e[2] for e in held),
+            'late_episodes': len(late), 'late_picked': sum(e[1] for e in late),
+            'late_solved': sum(e[2] for e in late),
+            'training_picked': sum(e[1] for e in episodes if not e[0]),
+            'updates_per_step': metrics['train/updates_per_step'],
+            'wall_s': round(time.monotonic() - started, 1)}
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split('\n')[1])
+    parser.add_argument('--seeds', type=int, nargs='+', default=[900])
+    parser.add_argument('--steps', type=int, default=10000)
+    parser.add_argument('--heldout', type=int, default=2500,
+                        help='the last steps, on held-out rooms and target pairs')
+    parser.add_argument('--mode', choices=('mask', 'language', 'faded', 'off'), default='mask')
+    parser.add_argument('--explore', type=float, default=0.0)
+    parser.add_argument('--set', action='append', default=[], metavar='NAME=VALUE',
+                        help='a TamerConfig field (repeatable)')
+    parser.add_argument('--out', type=Path, default=None)
+    args = parser.parse_args(argv)
+    overrides = {item.split('=', 1)[0]: parse_value(item.split('=', 1)[1]) for item in args.set}
+    results = []
+    with tempfile.TemporaryDirectory() as workdir:
+        for seed in args.seeds:
+            result = run_trial(seed, args.steps, args.heldout, args.mode, args.explore,
+                               overrides, Path(workdir))
+            results.append(result)
+            print(json.dumps(result), flush=True)
+    held = sum(r['heldout_episodes'] for r in results)
+    print(f'held-out solved {sum(r["heldout_solved"] for r in results)} of {held} '
+          f'(picked {sum(r["heldout_picked"] for r in results)}); mode {args.mode}, explore '
+          f'{args.explore}, overrides {overrides}')
+    if args.out:
+        args.out.write_text(json.dumps({'argv': sys.argv[1:], 'mode': args.mode,
+                                        'explore': args.explore, 'overrides': overrides,
+                                        'results': results}, indent=1) + '\n')
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
