@@ -242,8 +242,10 @@ def test_agreement_counts_only_steps_both_acted_on():
 def test_a_replay_takes_the_sessions_parameters_and_the_chosen_condition(tmp_path):
     session_params = ('tamer_node:\n  ros__parameters:\n    credit: window\n'
                       '    window_max_s: 1.6\n    alpha: 0.0001\n'
-                      '    run_dir: /elsewhere\n    seed: 7\n'
-                      'saliency_node:\n  ros__parameters:\n    mode: language\n')
+                      '    run_dir: /elsewhere\n    seed: 7\n    explore: 0.1\n'
+                      '    wait_for_recorder: session_recorder\n'
+                      'saliency_node:\n  ros__parameters:\n    mode: language\n'
+                      '    wait_for_recorder: session_recorder\n')
     writer = _writer(tmp_path / 'run' / 'bag', {
         'attention.launch_options': json.dumps({'condition': 'language', 'task': 'montezuma'}),
         'attention.params': session_params})
@@ -256,6 +258,9 @@ def test_a_replay_takes_the_sessions_parameters_and_the_chosen_condition(tmp_pat
     assert (tamer['alpha'], tamer['input_image'], saliency['mode']) == (
         0.0, 'saliency', 'blind_agent')  # the condition's file wins over the session's
     assert tamer['run_dir'] == str(plan.run_dir) and tamer['resume'] is False
+    # Nothing records a replay, and its answers are greedy (compared with the session's).
+    assert tamer.get('wait_for_recorder', '') == saliency.get('wait_for_recorder', '') == ''
+    assert tamer['explore'] == 0.0
     assert '-replay-blind_obs-seed7' in plan.run_dir.name
     same = build_plan(ReplayOptions(bag=str(tmp_path / 'run'), run_dir='r'), tmp_path / 'b',
                       tmp_path)

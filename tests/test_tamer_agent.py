@@ -705,3 +705,26 @@ def test_feedback_is_learned_on_the_action_taken_not_the_agent_s_answer(agents, 
     (tmp_path / 'taken' / CHECKPOINT_DIR / CHECKPOINT_FILE).unlink()
     resumed = agents(tmp_path / 'taken', resume=True)
     assert {s.stamp: s.action for s in resumed.buffer.samples()} == samples
+
+
+def test_explore_takes_a_share_of_decisions_at_random_and_learns_on_them(agents, tmp_path):
+    greedy = agents(tmp_path / 'greedy')
+    acted = play(greedy, 30)
+    assert len(set(acted.values())) == 1 and 'act/explored' not in greedy.metrics()
+    greedy_action = acted[stamp(0)]  # (the same untrained H in both: torch.manual_seed(0))
+    exploring = agents(tmp_path / 'exploring', explore=0.5)
+    acted = play(exploring, 30)
+    explored = exploring.metrics()['act/explored']
+    assert 6 <= explored <= 24 and len(set(acted.values())) > 2
+    # A judged exploring step is learned on the action it took, as any other.
+    off_greedy = [t for t, action in acted.items() if action != greedy_action]
+    exploring.on_feedback(1.0, 'stamped', off_greedy[0])
+    assert processed(exploring, 1)
+    [sample] = exploring.buffer.samples()
+    assert (sample.stamp, sample.action) == (off_greedy[0], acted[off_greedy[0]])
+
+
+@pytest.mark.parametrize('share', [-0.1, 1.0])
+def test_explore_must_leave_some_decisions_to_h(share):
+    with pytest.raises(ValueError, match='explore'):
+        TamerConfig(explore=share).validate()

@@ -1,13 +1,13 @@
 """
 Can H represent Fetch at all? H fitted offline on every action's judgement, then acted greedily.
 
-The words study's learners stay below chance (docs/results_words.md). This asks whether the
-learner's model could do better with perfect, dense supervision: states visited by the expert
-(with ``--epsilon`` random actions for coverage) on training rooms; every action of every state
-labelled as Fetch's teacher would judge it (+1 as good as the expert's, else -1); H's head fitted
-on them with the frozen DoorKey encoder, as tamer_node does; then greedy episodes on held-out
-rooms with training target pairs and with held-out pairs. Each input is one design of what H
-reads besides the frame:
+The greedy learners of the words study stayed below chance (docs/results_words_greedy.md).
+This asks whether the learner's model could do better with perfect, dense supervision: states
+visited by the expert (with ``--epsilon`` random actions for coverage) on training rooms; every
+action of every state labelled as Fetch's teacher would judge it (+1 as good as the expert's,
+else -1); H's head fitted on them with the frozen DoorKey encoder, as tamer_node does; then
+greedy episodes on held-out rooms with training target pairs and with held-out pairs. Each
+input is one design of what H reads besides the frame:
 
 - ``observation``: the frame alone (vanilla, the thesis's language: at acting time);
 - ``blur``: the frame and the saliency image (language_input as built: radius-3 blur outside

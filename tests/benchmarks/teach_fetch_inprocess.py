@@ -5,15 +5,17 @@ The graph's loop one step after the other, as ``teach_doorkey_inprocess.py`` doe
 with the saliency node's work done here: each frame is matched and the mission ("pick up the
 <target>", said at every episode's start and in force all episode) rendered in ``--mode``
 (mask: language_input; language: its first, blurred design) for a learner with ``input_image``
-both. The teacher judges every action on time (stamped). ``--explore E``: on a share E of the
-steps the executed action is a random one (told to the agent as ``action_taken``, as
-attention_replay does), so it is judged too: the greedy learner otherwise never tries a
-pick-up in front of the target once pick-ups elsewhere taught it that they are bad.
+both. The teacher judges every action on time (stamped), or as a person would
+(``--human-like``: plain, late, sparse, 10 % wrong; the credit window). ``--explore E``: the
+learner's ``explore`` (a share E of its decisions at random, judged too): the greedy learner
+otherwise never tries a pick-up in front of the target once pick-ups elsewhere taught it that
+they are bad.
 The settings are the words study's (8 x 8, four objects, 50 steps an episode, 1.5 updates a
 step); the last ``--heldout`` steps are on held-out rooms with held-out target pairs.
 
 Run: ``.venv/bin/python tests/benchmarks/teach_fetch_inprocess.py --seeds 900 901 --steps 10000
-[--mode mask|language|off] [--explore 0.1] [--set NAME=VALUE ...] [--out results.json]``.
+[--mode mask|language|off] [--explore 0.1] [--human-like] [--set NAME=VALUE ...]
+[--out results.json]``.
 """
 
 import argparse
@@ -24,13 +26,15 @@ import tempfile
 import time
 
 from fetch_capacity import EPISODE_STEPS, Views
-import numpy as np
 from teach_inprocess import parse_value
 
 
-def run_trial(seed: int, steps: int, heldout: int, mode: str, explore: float, overrides: dict,
-              workdir: Path) -> dict:
+def run_trial(seed: int, steps: int, heldout: int, mode: str, explore: float, human_like: bool,
+              overrides: dict, workdir: Path) -> dict:
+    from attention_bringup.plan import human_like_window_s
     from attention_tasks.fetch.env import FetchEnv, FetchEnvConfig
+    from attention_tasks.gridworld import STEP_S
+    from feedback_node.human_like import HUMAN_LIKE_SETTING
     from attention_tasks.gridworld import NUM_ACTIONS, PICKUP
     from attention_tasks.fetch.world import mission
     from env_node.status import Counters, parse_status, status_values
@@ -41,11 +45,14 @@ def run_trial(seed: int, steps: int, heldout: int, mode: str, explore: float, ov
     from tamer_node.config import TamerConfig
 
     share_the_cpu()
+    knobs = vars(HUMAN_LIKE_SETTING) if human_like else {}
     teacher = TaskTeacher(load_knowledge('fetch'), NUM_ACTIONS,
-                          TeacherConfig(utterance_interval=-1.0, seed=seed))
+                          TeacherConfig(utterance_interval=-1.0, seed=seed, **knobs))
     config = {'task': 'fetch', 'seed': seed, 'alpha': 0.0, 'update_rate_hz': 1.5,
-              'greedy_margin': 0.1, 'credit': 'step',
-              'input_image': 'observation' if mode == 'off' else 'both'}
+              'greedy_margin': 0.1, 'credit': 'window' if human_like else 'step',
+              'input_image': 'observation' if mode == 'off' else 'both', 'explore': explore}
+    if human_like:  # late, sparse, noisy and unstamped: the window attributes it
+        config['window_min_s'], config['window_max_s'] = human_like_window_s(STEP_S)
     config.update(overrides)
     run_dir = workdir / f'seed{seed}'
     agent = TamerAgent(TamerConfig(run_dir=str(run_dir), **config), run_dir)
@@ -54,7 +61,6 @@ def run_trial(seed: int, steps: int, heldout: int, mode: str, explore: float, ov
                                   heldout_after=steps - heldout))
     views = Views()
     rendering = SaliencyConfig(mode=mode if mode != 'off' else 'language')
-    rng = np.random.default_rng(seed + 7)
     counters = Counters()
 
     def see(step):
@@ -69,9 +75,6 @@ def run_trial(seed: int, steps: int, heldout: int, mode: str, explore: float, ov
             named = views.grounder.ground(mission(*step.state.target.split(' ', 1))).objects
             image, _ = views.maker.render(frame, scene, named, rendering)
             action = agent.on_saliency(step.sim_time_ns, image)
-        if explore > 0 and rng.random() < explore:
-            action = int(rng.integers(NUM_ACTIONS))
-            agent.on_action_taken(step.sim_time_ns, action)
         return action
 
     episodes = []  # (held out, picked, solved, started at step)
@@ -83,7 +86,10 @@ def run_trial(seed: int, steps: int, heldout: int, mode: str, explore: float, ov
         action = act(step)
         step = env.step(action)
         for judgement in see(step):
-            agent.on_feedback(judgement.h, 'stamped', judgement.stamp_ns)
+            if human_like:
+                agent.on_feedback(judgement.h, 'plain')
+            else:
+                agent.on_feedback(judgement.h, 'stamped', judgement.stamp_ns)
         if step.done:
             episodes.append((bool(step.state.heldout), action == PICKUP and bool(
                 step.state.carrying), bool(step.state.fetched), begun))
@@ -112,6 +118,8 @@ def main(argv=None) -> int:
                         help='the last steps, on held-out rooms and target pairs')
     parser.add_argument('--mode', choices=('mask', 'language', 'faded', 'off'), default='mask')
     parser.add_argument('--explore', type=float, default=0.0)
+    parser.add_argument('--human-like', action='store_true',
+                        help='the human-like teacher (a third of the steps, late, 10 %% wrong)')
     parser.add_argument('--set', action='append', default=[], metavar='NAME=VALUE',
                         help='a TamerConfig field (repeatable)')
     parser.add_argument('--out', type=Path, default=None)
@@ -121,7 +129,7 @@ def main(argv=None) -> int:
     with tempfile.TemporaryDirectory() as workdir:
         for seed in args.seeds:
             result = run_trial(seed, args.steps, args.heldout, args.mode, args.explore,
-                               overrides, Path(workdir))
+                               args.human_like, overrides, Path(workdir))
             results.append(result)
             print(json.dumps(result), flush=True)
     held = sum(r['heldout_episodes'] for r in results)
@@ -130,7 +138,8 @@ def main(argv=None) -> int:
           f'{args.explore}, overrides {overrides}')
     if args.out:
         args.out.write_text(json.dumps({'argv': sys.argv[1:], 'mode': args.mode,
-                                        'explore': args.explore, 'overrides': overrides,
+                                        'explore': args.explore,
+                                        'human_like': args.human_like, 'overrides': overrides,
                                         'results': results}, indent=1) + '\n')
     return 0
 

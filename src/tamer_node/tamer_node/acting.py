@@ -29,6 +29,9 @@ from tamer_node.persistence import (
 from tamer_node.words import bag_of_words
 import torch
 
+EXPLORE_STREAM = 0x5EED
+"""The exploring draws' own random stream (beside the seed): ties draw from another."""
+
 
 class BadInput(ValueError):
     """A message the agent cannot use; it was counted and dropped."""
@@ -159,6 +162,7 @@ class ActingPath:
             self.text = torch.zeros(config.text_size)
         self._held: Optional[int] = None  # the decision being held (decision_period_s)
         self._decision: Optional[int] = None  # the stamp of the step that chose it
+        self._explore_rng = np.random.default_rng([config.seed, EXPLORE_STREAM])
 
     @property
     def session(self) -> int:
@@ -293,6 +297,13 @@ class ActingPath:
             self.counters[f'drop/{kind}'] += 1
             raise BadInput(f'{kind} dropped: {error}') from error
 
+    def _decide(self, values: torch.Tensor) -> int:
+        """A new decision: at random on a share ``explore`` of them, else H's (``choose``)."""
+        if self.config.explore > 0.0 and self._explore_rng.random() < self.config.explore:
+            self.counters['act/explored'] += 1
+            return int(self._explore_rng.integers(self._num_actions))
+        return self.actor.choose(values)
+
     def _act(self, record, started: Optional[float], image=None) -> int:
         if record.action is not None:
             return record.action  # the env re-sent this step: answer it the same way
@@ -316,7 +327,7 @@ class ActingPath:
             values = self.actor.values_on_features(self._with_text(record, features))
         else:
             values = self.actor.predict(record.image(kind) if image is None else image)
-        action = held if held is not None else self.actor.choose(values)
+        action = held if held is not None else self._decide(values)
         if held is not None:
             self.counters['act/held'] += 1
         else:  # a new decision, held until decision_period_s has passed

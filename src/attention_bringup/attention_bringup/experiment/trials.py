@@ -49,7 +49,7 @@ RECORDED_PARAMETERS = (
     ('feedback_node', 'trainer'), ('feedback_node', 'feedback_probability'),
     ('feedback_node', 'feedback_delay_min'), ('feedback_node', 'feedback_delay_max'),
     ('feedback_node', 'feedback_noise'), ('tamer_node', 'window_min_s'),
-    ('tamer_node', 'window_max_s'), ('tamer_node', 'greedy_margin'),
+    ('tamer_node', 'window_max_s'), ('tamer_node', 'greedy_margin'), ('tamer_node', 'explore'),
     ('saliency_node', 'mode'), ('saliency_node', 'require_utterance'),
     ('tamer_node', 'alpha'), ('tamer_node', 'input_image'), ('tamer_node', 'credit'),
     ('tamer_node', 'seed'),

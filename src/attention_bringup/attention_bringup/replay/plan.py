@@ -165,8 +165,9 @@ def build_plan(options: ReplayOptions, bin_dir: Path, cwd: Path,
         stamp = f'{now or datetime.datetime.now():%Y%m%d-%H%M%S}'
         named = '' if task == DEFAULT_TASK else f'{task}-'
         run_dir = cwd / 'runs' / f'{stamp}-replay-{named}{condition}-seed{seed}'
+    # It learns on the session's actions; its own answers, compared with them, are greedy.
     overrides = {'tamer_node': {'run_dir': str(run_dir), 'resume': False, 'seed': seed,
-                                'task': task},
+                                'task': task, 'explore': 0.0},
                  'saliency_node': {'task': task}}
     merged = merge_params([merged, overrides])
     params = {node: node_params(merged, node) for node in REPLAYED_NODES}

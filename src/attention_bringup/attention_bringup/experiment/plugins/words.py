@@ -160,7 +160,8 @@ def write_report(spec: Spec, result: dict, by_arm: Mapping, context: Mapping) ->
         '## Comparisons (held-out success)', '',
         *markdown.table(['comparison', 'difference', 'Hedges g', 'Welch p'], compared), '',
         f'Wall time of the trials: {markdown.minutes(result["wall_time_s"])}.', '']
-    discussion = Path(spec.report).with_name('results_words_discussion.md')
+    report = Path(spec.report)
+    discussion = report.with_name(f'{report.stem}_discussion.md')
     if discussion.exists():
         lines += [discussion.read_text().rstrip(), '']
     Path(spec.report).write_text('\n'.join(lines))
