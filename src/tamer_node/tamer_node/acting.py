@@ -298,7 +298,7 @@ class ActingPath:
             raise BadInput(f'{kind} dropped: {error}') from error
 
     def _decide(self, values: torch.Tensor) -> int:
-        """A new decision: at random on a share ``explore`` of them, else H's (``choose``)."""
+        """Return a new decision: at random on a share ``explore`` of them, else H's choice."""
         if self.config.explore > 0.0 and self._explore_rng.random() < self.config.explore:
             self.counters['act/explored'] += 1
             return int(self._explore_rng.integers(self._num_actions))
