@@ -19,7 +19,7 @@ import sys
 import tempfile
 import time
 
-from teach_inprocess import parse_value
+from teach_inprocess import give, parse_value
 
 
 def run_trial(seed: int, steps: int, heldout: int, human_like: bool, overrides: dict,
@@ -61,11 +61,7 @@ def run_trial(seed: int, steps: int, heldout: int, human_like: bool, overrides: 
     for _ in range(steps):
         action = agent.on_observation(step.sim_time_ns, step.observation)
         step = env.step(action)
-        for judgement in see(step):
-            if human_like:
-                agent.on_feedback(judgement.h, 'plain')
-            else:
-                agent.on_feedback(judgement.h, 'stamped', judgement.stamp_ns)
+        give(agent, see(step), human_like)
         if step.done:
             values = parse_status(status_values(step, counters, False))
             episodes.append((bool(step.state.heldout), bool(values.get('at_goal')),

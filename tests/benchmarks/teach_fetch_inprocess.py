@@ -26,7 +26,7 @@ import tempfile
 import time
 
 from fetch_capacity import EPISODE_STEPS, Views
-from teach_inprocess import parse_value
+from teach_inprocess import give, parse_value
 
 
 def run_trial(seed: int, steps: int, heldout: int, mode: str, explore: float, human_like: bool,
@@ -85,11 +85,7 @@ def run_trial(seed: int, steps: int, heldout: int, mode: str, explore: float, hu
     for k in range(steps):
         action = act(step)
         step = env.step(action)
-        for judgement in see(step):
-            if human_like:
-                agent.on_feedback(judgement.h, 'plain')
-            else:
-                agent.on_feedback(judgement.h, 'stamped', judgement.stamp_ns)
+        give(agent, see(step), human_like)
         if step.done:
             episodes.append((bool(step.state.heldout), action == PICKUP and bool(
                 step.state.carrying), bool(step.state.fetched), begun))

@@ -40,6 +40,15 @@ def parse_value(text: str):
     return {'true': True, 'false': False}.get(text, text)
 
 
+def give(agent, judgements, human_like: bool) -> None:
+    """Hand the teacher's judgements to the agent: stamped on time, or plain (late, human-like)."""
+    for judgement in judgements:
+        if human_like:
+            agent.on_feedback(judgement.h, 'plain')
+        else:
+            agent.on_feedback(judgement.h, 'stamped', judgement.stamp_ns)
+
+
 def run_trial(seed: int, steps: int, human_like: bool, overrides: dict, pace: float,
               workdir: Path, table: str = '', knobs: dict = None,
               stamped_late: bool = False) -> dict:
