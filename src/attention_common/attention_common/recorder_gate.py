@@ -14,7 +14,7 @@ recorder had not matched. Thread-safe: any thread may publish through it.
 """
 
 import threading
-from typing import Callable, List, Sequence
+from typing import List, Sequence
 
 from rclpy.clock import Clock, ClockType
 
@@ -33,12 +33,10 @@ def recorder_matched(node, publisher, recorder: str) -> bool:
 class RecorderGate:
     """Publishes through ``publish``; holds all until ``recorder`` matches ``publishers``."""
 
-    def __init__(self, node, recorder: str, publishers: Sequence, timeout_s: float,
-                 matched: Callable = recorder_matched):
+    def __init__(self, node, recorder: str, publishers: Sequence, timeout_s: float):
         self._node = node
         self._recorder = recorder
         self._publishers = list(publishers)
-        self._matched = matched
         self._held: List = []
         self._lock = threading.Lock()
         self.is_open = not recorder
@@ -62,7 +60,7 @@ class RecorderGate:
 
     def _check(self) -> None:
         missing = [p.topic_name for p in self._publishers
-                   if not self._matched(self._node, p, self._recorder)]
+                   if not recorder_matched(self._node, p, self._recorder)]
         late = self._steady.now().nanoseconds >= self._deadline
         if missing and not late:
             return
