@@ -570,9 +570,11 @@ def test_periodic_checkpoints_are_atomic_and_prune_the_journal(tmp_path):
             assert wait_until(has_everything, 20, interval=0.05)
         assert agent.worker.stats()['checkpoint/count'] >= 3
         # A new segment per checkpoint, but no empty ones are kept (but the one being written).
+        # (How many hold steps depends on where checkpoints fell: on a busy machine a round's
+        # ten steps span two; the buffer's first sample keeps the oldest, see the journal test.)
         segments = sorted((run / 'steps').glob('segment-*.bin'))
         assert sum(path.stat().st_size == 0 for path in segments[:-1]) == 0
-        assert len(segments) <= 4
+        assert len(segments) <= agent.worker.stats()['checkpoint/count'] + 1
     finally:
         agent.close()
     assert not list((run / CHECKPOINT_DIR).glob('*.tmp'))
