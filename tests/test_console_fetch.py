@@ -58,11 +58,16 @@ def episode_status(statuses, episode: int, message: str):
 def test_typed_words_steer_a_trained_learner_to_the_object_they_name(probe, tmp_path):
     statuses = probe.subscribe(DiagnosticArray, topics.ENV_STATUS, qos.STEP_DATA)
     port = free_port()
+    # Each step is acted on with its mask: a busy machine must not make the learner act on the
+    # frame alone (after saliency_timeout_s, 0.5 s by default, it would).
+    patient = tmp_path / 'patient.yaml'
+    patient.write_text('tamer_node:\n  ros__parameters:\n    saliency_timeout_s: 10.0\n')
     launcher = subprocess.Popen(
         [LAUNCHER, '--task', 'fetch', '--condition', 'language_input', '--no-synthetic',
          '--console', '--console-port', str(port), '--initial-model', str(MODEL),
          '--seed', str(SEED), '--steps', '500', '--no-record',
-         '--stall-timeout', str(STALL_S), '--run-dir', str(tmp_path / 'run')],
+         '--stall-timeout', str(STALL_S), '--params-file', str(patient),
+         '--run-dir', str(tmp_path / 'run')],
         stdout=subprocess.DEVNULL, stderr=open(tmp_path / 'launcher.err', 'w'))
     typed, carried = [], []
     try:
