@@ -24,8 +24,11 @@ $(STAMP): requirements.txt $(foreach p,$(PACKAGES),src/$(p)/setup.py src/$(p)/pa
 run: setup
 	$(BIN)/attention_train $(ARGS)
 
+# Two pytest workers (pytest-xdist), each test file whole on one of them, each worker in a ROS
+# domain of its own (tests/conftest.py); TEST_WORKERS=0 runs them in this one process.
+TEST_WORKERS ?= 2
 test: setup
-	$(BIN)/python -m pytest tests $(PYTEST_ARGS)
+	$(BIN)/python -m pytest tests -n $(TEST_WORKERS) --dist loadfile $(PYTEST_ARGS)
 
 bench: setup
 	$(BIN)/python tests/benchmarks/run_all.py

@@ -317,3 +317,30 @@ def test_doorkey_over_the_same_topics(start_node, probe):
     status = learner.status_at(stamp_to_ns(after.header.stamp))
     assert status['action'] == 2 and status['bad_actions'] == 1 and status['agent_step'] == 2
     assert env.stop(signal.SIGINT) == 0
+
+
+def test_each_episode_starts_paused_until_resumed(start_node, probe):
+    """pause_each_episode: a person sees each new room first (Fetch: then says the goal)."""
+    learner = Learner(probe)
+    env = start_node('env_node', {'task': 'fetch', 'max_episode_steps': 2,
+                                  'pause_each_episode': True, 'action_timeout': 30.0})
+
+    def message_at(stamp_ns):
+        learner.status_at(stamp_ns)
+        return next(m.status[0].message for m in learner.statuses.snapshot()
+                    if stamp_to_ns(m.header.stamp) == stamp_ns)
+
+    observation = learner.connect()
+    for episode in range(2):
+        pending = stamp_to_ns(observation.header.stamp)
+        assert message_at(pending) == 'paused'
+        assert learner.status_at(pending)['episode'] == episode
+        learner.send(pending, LEFT)  # answered while paused: it waits
+        assert not learner.observations.wait_for(
+            lambda ms: stamp_to_ns(ms[-1].header.stamp) > pending, 1.0)
+        assert set_paused(probe, False).successful  # the person resumes
+        following = learner.next_observation(pending)
+        assert message_at(stamp_to_ns(following.header.stamp)) == 'running'
+        observation = learner.step(following, LEFT)  # the second step ends the episode
+    assert env.wait_for_log('paused: episode 1 starts', REPLY_S)
+    assert env.stop(signal.SIGINT) == 0

@@ -160,3 +160,28 @@ def test_an_arms_own_parameters_go_on_top_of_every_trials(tmp_path):
     assert yaml.safe_load(own.read_text()) == {
         'saliency_node': {'ros__parameters': {'mode': 'language'}}}
     assert not (tmp_path / 'out' / 'plain_params.yaml').exists()
+
+
+def test_a_spec_extends_another_and_changes_only_what_it_says(tmp_path):
+    base = dict(GOOD, parameters={'env_node': {'size': 8}, 'tamer_node': {'explore': 0.1,
+                                                                          'alpha': 0.0}})
+    (tmp_path / 'base.yaml').write_text(yaml.safe_dump(base))
+    (tmp_path / 'more.yaml').write_text(yaml.safe_dump({
+        'extends': 'base.yaml', 'name': 'more', 'out': 'out_more',
+        'parameters': {'tamer_node': {'explore': 0.0}, 'saliency_node': {'mode': 'mask'}}}))
+    spec, parent = specs.load(str(tmp_path / 'more.yaml')), specs.load(str(tmp_path / 'base.yaml'))
+    assert (spec.name, spec.out, parent.name, parent.out) == ('more', 'out_more', 'tiny', 'out')
+    assert spec.arms == parent.arms and spec.comparisons == parent.comparisons
+    assert spec.parameters == {'env_node': {'size': 8}, 'saliency_node': {'mode': 'mask'},
+                               'tamer_node': {'explore': 0.0, 'alpha': 0.0}}  # node by node
+    # The words study's greedy first run is the words study with greedy learners, nothing else.
+    words, greedy = specs.load('words'), specs.load('words_greedy')
+    assert greedy.arms == words.arms and greedy.comparisons == words.comparisons
+    assert greedy.settings == words.settings and greedy.seeds == words.seeds
+    assert greedy.parameters == {'tamer_node': {'explore': 0.0}} and not words.parameters
+    assert greedy.out != words.out and greedy.runs_dir != words.runs_dir
+    # A spec that extends itself, through another or not, is refused.
+    (tmp_path / 'a.yaml').write_text(yaml.safe_dump({'extends': 'b.yaml'}))
+    (tmp_path / 'b.yaml').write_text(yaml.safe_dump({'extends': 'a.yaml'}))
+    with pytest.raises(SpecError, match='extends itself'):
+        specs.load(str(tmp_path / 'a.yaml'))

@@ -487,6 +487,29 @@ def test_task_doorkey_reaches_every_node_with_its_files_and_rate(tmp_path):
     assert parse_options(['--task', 'doorkey']).task == 'doorkey'
 
 
+def test_a_person_training_fetch_gets_its_file_and_a_trained_model(tmp_path):
+    model = tmp_path / 'trained' / 'checkpoints' / 'checkpoint.pt'
+    model.parent.mkdir(parents=True)
+    model.write_bytes(b'')
+    options = parse_options(['--task', 'fetch', '--condition', 'language_input',
+                             '--no-synthetic', '--initial-model', 'trained',
+                             '--stall-timeout', '30'])
+    plan = build_plan(options, BIN, tmp_path)
+    person = graph.person_file('fetch')
+    assert plan.params_files.index(person) == 3  # after the condition, before the user's
+    assert plan.effective['env_node']['pause_each_episode'] is True
+    assert plan.effective['saliency_node']['utterance_ttl'] == 50.0  # a whole episode
+    assert plan.overrides['tamer_node']['initial_model'] == str(tmp_path / 'trained')
+    assert options.stall_timeout == 30.0
+    # The teacher's runs and the other tasks are as they were.
+    assert person not in _plan(tmp_path, task='fetch').params_files
+    assert not graph.person_file('doorkey').exists()
+    with pytest.raises(ValueError, match='--initial-model elsewhere: no such run folder'):
+        build_plan(parse_options(['--initial-model', 'elsewhere']), BIN, tmp_path)
+    with pytest.raises(SystemExit):
+        parse_options(['--stall-timeout', '0'])
+
+
 def test_foxglove_adds_the_bridge_with_its_port_and_the_task(tmp_path):
     assert not any(c.name == 'graph_viewer' for c in _plan(tmp_path, seed=3).commands)
     plan = _plan(tmp_path, task='doorkey', foxglove=True, foxglove_port=9001, seed=3)

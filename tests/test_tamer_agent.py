@@ -570,9 +570,11 @@ def test_periodic_checkpoints_are_atomic_and_prune_the_journal(tmp_path):
             assert wait_until(has_everything, 20, interval=0.05)
         assert agent.worker.stats()['checkpoint/count'] >= 3
         # A new segment per checkpoint, but no empty ones are kept (but the one being written).
+        # (How many hold steps depends on where checkpoints fell: on a busy machine a round's
+        # ten steps span two; the buffer's first sample keeps the oldest, see the journal test.)
         segments = sorted((run / 'steps').glob('segment-*.bin'))
         assert sum(path.stat().st_size == 0 for path in segments[:-1]) == 0
-        assert len(segments) <= 4
+        assert len(segments) <= agent.worker.stats()['checkpoint/count'] + 1
     finally:
         agent.close()
     assert not list((run / CHECKPOINT_DIR).glob('*.tmp'))
@@ -728,3 +730,42 @@ def test_explore_takes_a_share_of_decisions_at_random_and_learns_on_them(agents,
 def test_explore_must_leave_some_decisions_to_h(share):
     with pytest.raises(ValueError, match='explore'):
         TamerConfig(explore=share).validate()
+
+
+def test_a_new_run_starts_from_a_trained_runs_model(tmp_path):
+    trained = make_agent(tmp_path / 'trained', saliency_timeout_s=0.05)
+    feed(trained, 20)
+    assert processed(trained, 20)
+    trained.close()  # its last checkpoint
+    learned = state_of(trained)['model']
+    untrained = make_agent(tmp_path / 'untrained')
+    untrained.close()
+    assert any(not torch.equal(learned[name], tensor)
+               for name, tensor in state_of(untrained)['model'].items())
+    for source in (tmp_path / 'trained', tmp_path / 'trained' / CHECKPOINT_DIR / CHECKPOINT_FILE):
+        run = tmp_path / f'from_{source.name}'
+        agent = make_agent(run, initial_model=str(source))
+        try:
+            for name, tensor in agent.learner.model.state_dict().items():
+                assert torch.equal(tensor, learned[name]), name
+            for name, tensor in agent.actor.model.state_dict().items():  # it acts on them
+                assert torch.equal(tensor, learned[name]), name
+            assert agent.learner.updates == 0 and len(agent.buffer) == 0  # a run of its own
+            assert (run / FEEDBACK_LOG).read_text() == ''  # nothing of the trained run's
+            assert any('starts from the model' in text for _, text in agent.messages)
+        finally:
+            agent.close()
+
+
+def test_a_model_that_cannot_be_used_stops_the_start_with_the_reason(tmp_path):
+    trained = make_agent(tmp_path / 'trained')
+    feed(trained, 4)
+    assert processed(trained, 4)
+    trained.close()
+    model = str(tmp_path / 'trained')
+    cases = ((str(tmp_path / 'nothing'), {}, 'no checkpoint at'),
+             (model, {'input_image': 'both'}, "trained with input_image 'observation'"),
+             (model, {'head_hidden': 32}, 'does not fit this learner'))
+    for path, changes, reason in cases:
+        with pytest.raises(ValueError, match=reason):
+            make_agent(tmp_path / f'run{len(reason)}', initial_model=path, **changes)

@@ -296,3 +296,14 @@ def test_the_console_shows_another_tasks_milestones():
     snapshot = state.snapshot()
     assert snapshot['furthest'] == 1 and snapshot['milestones'] == ['key', 'door', 'goal']
     assert ConsoleState().snapshot()['milestones'][5] == 'critical position 5'  # Room 1's
+
+
+def test_the_page_shows_the_pause_of_an_env_that_paused_itself():
+    state = ConsoleState()
+    state.on_status({'agent_step': 0}, now=0.0, message='paused')  # pause_each_episode
+    assert state.snapshot()['paused']
+    state.on_status({'agent_step': 1}, now=0.0, message='running')  # resumed from elsewhere
+    assert not state.snapshot()['paused']
+    state.paused = True  # the console's own pause: a step still in flight does not undo it
+    state.on_status({'agent_step': 2}, now=0.0, message='running')
+    assert state.snapshot()['paused']

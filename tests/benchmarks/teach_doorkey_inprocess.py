@@ -67,7 +67,7 @@ def run_trial(seed: int, steps: int, heldout: int, human_like: bool, overrides: 
             episodes.append((bool(step.state.heldout), bool(values.get('at_goal')),
                              int(values.get('subgoals', 0))))
             step = env.reset()
-            see(step)
+            give(agent, see(step), human_like)  # due now, late: sent as the new layout shows
     metrics = agent.metrics()
     agent.close()
     env.close()

@@ -14,7 +14,8 @@ The settings are the words study's (8 x 8, four objects, 50 steps an episode, 1.
 step); the last ``--heldout`` steps are on held-out rooms with held-out target pairs.
 
 Run: ``.venv/bin/python tests/benchmarks/teach_fetch_inprocess.py --seeds 900 901 --steps 10000
-[--mode mask|language|off] [--explore 0.1] [--human-like] [--set NAME=VALUE ...]
+[--mode mask|language|off] [--explore 0.1] [--human-like] [--stamped-late]
+[--set NAME=VALUE ...]
 [--out results.json]``.
 """
 
@@ -30,7 +31,7 @@ from teach_inprocess import give, parse_value
 
 
 def run_trial(seed: int, steps: int, heldout: int, mode: str, explore: float, human_like: bool,
-              overrides: dict, workdir: Path) -> dict:
+              overrides: dict, workdir: Path, stamped_late: bool = False) -> dict:
     from attention_bringup.plan import human_like_window_s
     from attention_tasks.fetch.env import FetchEnv, FetchEnvConfig
     from attention_tasks.gridworld import STEP_S
@@ -45,13 +46,15 @@ def run_trial(seed: int, steps: int, heldout: int, mode: str, explore: float, hu
     from tamer_node.config import TamerConfig
 
     share_the_cpu()
-    knobs = vars(HUMAN_LIKE_SETTING) if human_like else {}
+    knobs = vars(HUMAN_LIKE_SETTING) if human_like or stamped_late else {}
     teacher = TaskTeacher(load_knowledge('fetch'), NUM_ACTIONS,
                           TeacherConfig(utterance_interval=-1.0, seed=seed, **knobs))
     config = {'task': 'fetch', 'seed': seed, 'alpha': 0.0, 'update_rate_hz': 1.5,
-              'greedy_margin': 0.1, 'credit': 'window' if human_like else 'step',
+              'greedy_margin': 0.1,
+              'credit': 'window' if human_like and not stamped_late else 'step',
               'input_image': 'observation' if mode == 'off' else 'both', 'explore': explore}
-    if human_like:  # late, sparse, noisy and unstamped: the window attributes it
+    if human_like and not stamped_late:  # late, sparse, noisy, unstamped: the window
+        # attributes it
         config['window_min_s'], config['window_max_s'] = human_like_window_s(STEP_S)
     config.update(overrides)
     run_dir = workdir / f'seed{seed}'
@@ -85,13 +88,14 @@ def run_trial(seed: int, steps: int, heldout: int, mode: str, explore: float, hu
     for k in range(steps):
         action = act(step)
         step = env.step(action)
-        give(agent, see(step), human_like)
+        give(agent, see(step), human_like and not stamped_late)
         if step.done:
             episodes.append((bool(step.state.heldout), action == PICKUP and bool(
                 step.state.carrying), bool(step.state.fetched), begun))
             step = env.reset()
             begun = k + 1
-            see(step)
+            give(agent, see(step), human_like and not stamped_late)  # due now: the last
+            # action's verdict, late (the graph's teacher sends it as the new room shows)
     metrics = agent.metrics()
     agent.close()
     env.close()
@@ -116,6 +120,9 @@ def main(argv=None) -> int:
     parser.add_argument('--explore', type=float, default=0.0)
     parser.add_argument('--human-like', action='store_true',
                         help='the human-like teacher (a third of the steps, late, 10 %% wrong)')
+    parser.add_argument('--stamped-late', action='store_true',
+                        help="the human-like teacher's verdicts, but each stamped with the step "
+                             'it judges (attribution exact; as sparse, late and wrong)')
     parser.add_argument('--set', action='append', default=[], metavar='NAME=VALUE',
                         help='a TamerConfig field (repeatable)')
     parser.add_argument('--out', type=Path, default=None)
@@ -125,7 +132,7 @@ def main(argv=None) -> int:
     with tempfile.TemporaryDirectory() as workdir:
         for seed in args.seeds:
             result = run_trial(seed, args.steps, args.heldout, args.mode, args.explore,
-                               args.human_like, overrides, Path(workdir))
+                               args.human_like, overrides, Path(workdir), args.stamped_late)
             results.append(result)
             print(json.dumps(result), flush=True)
     held = sum(r['heldout_episodes'] for r in results)
@@ -135,7 +142,8 @@ def main(argv=None) -> int:
     if args.out:
         args.out.write_text(json.dumps({'argv': sys.argv[1:], 'mode': args.mode,
                                         'explore': args.explore,
-                                        'human_like': args.human_like, 'overrides': overrides,
+                                        'human_like': args.human_like,
+                                        'stamped_late': args.stamped_late, 'overrides': overrides,
                                         'results': results}, indent=1) + '\n')
     return 0
 

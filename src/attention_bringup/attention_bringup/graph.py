@@ -45,6 +45,11 @@ def task_file(task: str, config_dir: Path = CONFIG_DIR) -> Path:
     return config_dir / TASKS_DIR / f'{task}.yaml'
 
 
+def person_file(task: str, config_dir: Path = CONFIG_DIR) -> Path:
+    """Return a task's file for a person training it (after the condition; it need not exist)."""
+    return config_dir / TASKS_DIR / f'{task}_person.yaml'
+
+
 def base_params_files(condition: str, config_dir: Path = CONFIG_DIR,
                       task: str = 'montezuma') -> List[Path]:
     """Return the files every node gets: graph defaults, the task's (if any), the condition."""

@@ -47,8 +47,6 @@ from session_bag.repair import repair
 
 STARTUP_TIMEOUT_S = 300.0
 """Longest wait for the first step (node start-up includes importing torch on a busy CPU)."""
-STALL_TIMEOUT_S = 120.0
-"""Longest wait between two steps once the graph runs."""
 ENV_MATCH_TIMEOUT_S = 60.0
 """Longest wait for the launcher's monitor to match env_node's publishers."""
 STOP_TIMEOUT_S = 30.0
@@ -266,10 +264,13 @@ class Launcher:
                 return 'completed', None
             if steps != last_steps:
                 last_steps, last_change = steps, now
-            limit = STALL_TIMEOUT_S if started else STARTUP_TIMEOUT_S
+            limit = self.plan.options.stall_timeout if started else STARTUP_TIMEOUT_S
             if now - last_change > limit:
-                self._report_stall(monitor, started, limit)
-                return 'stalled', None
+                if self._env_paused(monitor):
+                    last_change = now  # a person paused the env: waiting is no stall
+                else:
+                    self._report_stall(monitor, started, limit)
+                    return 'stalled', None
             if self.interactive or now - last_line >= 15.0:
                 self._show(bar)
                 last_line = now
@@ -328,6 +329,15 @@ class Launcher:
         self._clear_bar()
         self.err.write(text)
         self.err.flush()
+
+    @staticmethod
+    def _env_paused(monitor) -> bool:
+        """Return whether the env is paused: at an episode's start, or by the console."""
+        with monitor.lock:
+            if monitor.env_message == 'paused':  # pause_each_episode
+                return True
+        values = monitor.query_parameters(['env_node'], timeout_s=5.0).get('env_node')
+        return bool(values and values.get('paused'))
 
     def _report_stall(self, monitor, started: bool, limit: float) -> None:
         self._clear_bar()

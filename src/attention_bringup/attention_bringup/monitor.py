@@ -56,6 +56,8 @@ class GraphMonitor(Node):
                  watch_plain: bool = True, **kwargs):
         super().__init__('attention_train', **kwargs)
         self.lock = threading.Lock()
+        self.env_message = ''
+        """The newest env_status's message: 'running', 'paused', 'episode over', 'finished'."""
         self.tracker = tracker
         self.gallery = gallery
         self.counts = dict.fromkeys(
@@ -133,6 +135,7 @@ class GraphMonitor(Node):
         values = key_values(msg)
         with self.lock:
             self._count(topics.ENV_STATUS)
+            self.env_message = msg.status[0].message if msg.status else ''
             self.tracker.on_status(stamp_to_ns(msg.header.stamp), values, self.elapsed())
 
     def _on_feedback_stamped(self, msg: Vector3Stamped) -> None:

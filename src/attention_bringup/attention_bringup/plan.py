@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import Dict, List, Optional, Sequence
 
 from attention_bringup.graph import (
-    base_params_files, CONDITIONS, DEFAULT_CONDITION, NODES)
+    base_params_files, CONDITIONS, DEFAULT_CONDITION, NODES, person_file)
 from attention_bringup.params import (
     dump_params, GraphParams, load_params_file, merge_params, node_params, NodeParams)
 from attention_common.run_files import node_log, OPTIONS_FILE, OVERRIDES_FILE
@@ -28,6 +28,9 @@ from graph_viewer.config import DEFAULT_PORT as FOXGLOVE_PORT
 DEFAULT_STEPS = 10000
 """Agent steps of a default run (the thesis's trial): about 4 minutes on 2 busy CPU cores."""
 
+
+STALL_TIMEOUT_S = 120.0
+"""Default of ``--stall-timeout``: the longest wait between two steps once the graph runs."""
 
 CONSOLE = 'trainer_console'
 CONSOLE_PORT = 8080
@@ -120,6 +123,10 @@ class LaunchOptions:
     """The bridge's port on 127.0.0.1 (Foxglove's default, 8765; 0: any free one)."""
     record: Optional[bool] = None
     """Record the session as a rosbag2 bag (``bag/``); None: when a person trains."""
+    stall_timeout: float = STALL_TIMEOUT_S
+    """Seconds without a new step after which the graph counts as stalled (not while paused)."""
+    initial_model: Optional[str] = None
+    """A trained run (its folder or checkpoint file) whose H the learner starts from."""
 
     @property
     def records(self) -> bool:
@@ -132,6 +139,14 @@ def positive_int(text: str) -> int:
     value = int(text)
     if value < 1:
         raise argparse.ArgumentTypeError(f'must be at least 1, got {value}')
+    return value
+
+
+def positive_float(text: str) -> float:
+    """Parse a number above 0 (an argparse type)."""
+    value = float(text)
+    if not value > 0:
+        raise argparse.ArgumentTypeError(f'must be above 0, got {text}')
     return value
 
 
@@ -234,6 +249,14 @@ def argument_parser() -> argparse.ArgumentParser:
                              'the options it was started with, up to its budget: the learner '
                              'from its checkpoint and feedback log, a fresh env; other options '
                              'but --quiet are taken from the run folder')
+    parser.add_argument('--stall-timeout', dest='stall_timeout', type=positive_float,
+                        default=STALL_TIMEOUT_S, metavar='S',
+                        help='seconds without a new step after which the run stops as stalled '
+                             f'(default {STALL_TIMEOUT_S:g}; never while the env is paused)')
+    parser.add_argument('--initial-model', dest='initial_model', metavar='RUN', default=None,
+                        help="start the learner from a trained run's H (its run folder or its "
+                             'checkpoints/checkpoint.pt): a person tries what it learned, for '
+                             'example steering a Fetch learner with words in the console')
     return parser
 
 
@@ -399,6 +422,8 @@ def build_plan(options: LaunchOptions, bin_dir: Path, cwd: Path,
         raise ValueError(f'the run has done its {options.steps} steps already: nothing to '
                          'resume')
     files = base_params_files(options.condition, task=options.task)
+    if not options.synthetic and person_file(options.task).exists():
+        files.append(person_file(options.task))  # the task's settings for a person
     files += [(cwd / path).resolve() for path in options.params_files]
     files_params = merge_params(load_params_file(path) for path in files)
     seed = options.seed
@@ -410,6 +435,12 @@ def build_plan(options: LaunchOptions, bin_dir: Path, cwd: Path,
         run_dir = default_run_dir(cwd, options.condition, seed, now or datetime.datetime.now(),
                                   options.task)
     overrides = launcher_overrides(options, seed, run_dir, files_params, continuation)
+    if options.initial_model:
+        model = (cwd / Path(options.initial_model).expanduser()).resolve()
+        if not model.exists():
+            raise ValueError(f'--initial-model {options.initial_model}: no such run folder or '
+                             'checkpoint file')
+        overrides['tamer_node']['initial_model'] = str(model)
     merged = merge_params([files_params, overrides])
     effective = {node: node_params(merged, node) for node in NODES}
     all_files = files + [run_dir / OVERRIDES_FILE]

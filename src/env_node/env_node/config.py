@@ -42,6 +42,10 @@ class EnvNodeConfig:
     """true: no steps are taken (real time: the timer skips; lockstep: the answer waits until
     resumed) and simulation time stands still. Settable at run time (the trainer console pauses
     with it)."""
+    pause_each_episode: bool = False
+    """true: every episode, the first included, starts paused (its first observation is out,
+    env_status says 'paused'): a person looks at the new room and says the goal (Fetch), then
+    resumes (the console's button, or ``paused`` set false)."""
 
     def validate(self) -> None:
         """Raise ValueError saying which value is impossible (the world checks its own)."""

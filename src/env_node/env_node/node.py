@@ -60,7 +60,8 @@ class EnvNode(Closing, Node):
         except (ValueError, UnknownTask) as error:
             raise StartupError(str(error)) from None
         world = declare_dataclass(self, task.env_config)
-        self._paused = config.paused
+        self._paused = config.paused or config.pause_each_episode
+        self._pause_each_episode = config.pause_each_episode
         self._deferred = None  # lockstep, paused: the answer to apply on resume
         self._rate_hz = config.rate_hz
         self._action_timeout = config.action_timeout
@@ -143,8 +144,8 @@ class EnvNode(Closing, Node):
             self._status.values = self._key_values
         for key_value, (_, value) in zip(self._key_values, values):
             key_value.value = value
-        self._status.message = ('finished' if finished else
-                                'episode over' if step.done else 'running')
+        self._status.message = ('finished' if finished else 'episode over' if step.done else
+                                'paused' if self._paused else 'running')
         self._status_msg.header.stamp = stamp
         self._status_pub.publish(self._status_msg)
         self._latency_ms = NO_LATENCY  # an answer is timed once (not again after a reset)
@@ -173,6 +174,10 @@ class EnvNode(Closing, Node):
                 self._finish(step)
                 return
             step = self._env.reset()
+            if self._pause_each_episode and not self._paused:
+                self._paused = True
+                self.get_logger().info(f'paused: episode {step.episode} starts '
+                                       '(pause_each_episode); set paused false to go on')
         self._publish_step(step)
 
     def _finish(self, step: Step) -> None:

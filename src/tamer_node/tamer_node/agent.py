@@ -34,7 +34,7 @@ import numpy as np
 # BadInput is raised by the acting path; node.py imports it from here.
 from tamer_node.acting import ActingModel, ActingPath, BadInput, SnapshotSlot  # noqa: F401
 from tamer_node.buffer import FeedbackBuffer
-from tamer_node.checkpointing import next_session, read_run
+from tamer_node.checkpointing import next_session, read_initial_model, read_run
 from tamer_node.config import TamerConfig
 from tamer_node.events import AGENT_COUNTERS
 from tamer_node.history import StepHistory
@@ -107,6 +107,8 @@ class TamerAgent:
                               if config.share_action_parts else None),
                        streams=2 if config.input_image == 'both' else 1,
                        text_size=config.text_size if config.text_conditioning == 'film' else 0)
+        if config.initial_model:
+            self._start_from(model, read_initial_model(config.initial_model, config.input_image))
         self.learner = Learner(model, config.learning_rate, config.alpha, config.max_grad_norm,
                                config.credit_loss)
         self.actor = ActingModel(model, config.greedy_margin, config.seed,
@@ -167,6 +169,15 @@ class TamerAgent:
     def session(self) -> int:
         """Return the run's session number (persistence.py): 1, then one more per resume."""
         return self.acting.session
+
+    def _start_from(self, model: HModel, weights: dict) -> None:
+        try:
+            model.load_state_dict(weights)
+        except RuntimeError as error:  # torch names every missing or misshapen tensor
+            raise ValueError(f'initial_model {self.config.initial_model} does not fit this '
+                             f'learner (task, text_conditioning, head_hidden, '
+                             f'share_action_parts): {error}') from None
+        self._log('info', f'H starts from the model of {self.config.initial_model}')
 
     def _check_run_dir(self) -> None:
         self.run_dir.mkdir(parents=True, exist_ok=True)

@@ -14,7 +14,8 @@ from pathlib import Path
 import time
 from typing import Callable, Dict, Iterable, List, Optional, Tuple
 
-from attention_common.run_files import CHECKPOINT_DIR, FEEDBACK_LOG, STEPS_DIR
+from attention_common.run_files import (
+    CHECKPOINT_DIR, CHECKPOINT_FILE, FEEDBACK_LOG, STEPS_DIR)
 import numpy as np
 from tamer_node.buffer import FeedbackBuffer
 from tamer_node.config import TamerConfig
@@ -156,6 +157,31 @@ class Checkpoints:
             'states': torch.stack(states) if states else empty,
             'companions': torch.stack(companions) if companions else empty,
         }, missing
+
+
+def read_initial_model(path: str, input_image: str) -> Dict[str, torch.Tensor]:
+    """
+    Return H's weights from a trained run's checkpoint (a file, or a run folder's).
+
+    ``ValueError`` says why they cannot be used: missing, unreadable, another version, or
+    trained on another ``input_image``.
+    """
+    file = Path(path).expanduser()
+    if file.is_dir():
+        file = file / CHECKPOINT_DIR / CHECKPOINT_FILE
+    if not file.is_file():
+        raise ValueError(f'initial_model: no checkpoint at {file}')
+    try:
+        state = torch.load(file, map_location='cpu', weights_only=True)
+    except Exception as error:  # torch.load raises many kinds
+        raise ValueError(f'initial_model: {file} cannot be read ({error})') from error
+    if not isinstance(state, dict) or state.get('format') != CHECKPOINT_FORMAT:
+        raise ValueError(f'initial_model: {file} is not a checkpoint of this tamer_node version')
+    trained_on = state.get('input_image', 'observation')
+    if trained_on != input_image:
+        raise ValueError(f'initial_model: {file} was trained with input_image {trained_on!r}, '
+                         f'this learner has {input_image!r}')
+    return state['learner']['model']
 
 
 def read_run(run_dir: Path, log: Callable[[str, str], None]):

@@ -139,6 +139,11 @@ class TamerConfig:
     """Folder for metrics.csv, feedback_log.jsonl, checkpoints/ ('' = a new dated folder)."""
     resume: bool = False
     """Continue the run in run_dir from its last checkpoint and its feedback log."""
+    initial_model: str = ''
+    """H's weights at start from a trained run: its checkpoint file or its run folder ('' =
+    untrained). The run itself is new (its own logs, buffer and counters); a resume of it
+    continues from its own checkpoint. The model must fit this learner (task, input_image,
+    text_conditioning, head_hidden, share_action_parts)."""
     sync: str = 'grouped'
     """When a feedback_log.jsonl line is made durable (fdatasync) before its receipt
     (feedback_logged) goes out: 'grouped' (one fdatasync for the lines logged together, as

@@ -124,7 +124,7 @@ class ConsoleNode(Closing, Node):
             values = parse_status((kv.key, kv.value) for kv in msg.status[0].values)
         except (IndexError, ValueError):
             return
-        self.state.on_status(values)
+        self.state.on_status(values, message=msg.status[0].message)
 
     def _on_metrics(self, msg: DiagnosticArray) -> None:
         values = {}
@@ -206,7 +206,7 @@ class ConsoleNode(Closing, Node):
         result = future.result() if future.done() else None
         if result is None or not result.results[0].successful:
             return {'ok': False, 'error': 'the env did not take it'}
-        self.state.paused = paused
+        self.state.paused, self.state.paused_by_env = paused, False
         self.get_logger().info('paused the env' if paused else 'resumed the env')
         return {'ok': True}
 

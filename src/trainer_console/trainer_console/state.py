@@ -64,6 +64,8 @@ class ConsoleState:
     metrics: dict = field(default_factory=dict)
     furthest: int = -1
     paused: bool = False
+    paused_by_env: bool = False
+    """The env paused itself (pause_each_episode): its next running step ends the pause here."""
     listeners: Dict[str, List[str]] = field(default_factory=dict)
     """kind -> the nodes that subscribe to its topic (from the ROS graph)."""
     history: Deque[tuple] = field(default_factory=lambda: collections.deque(
@@ -117,8 +119,12 @@ class ConsoleState:
         with self._lock:
             self.last_utterance, self.named = text, named
 
-    def on_status(self, values: dict, now: Optional[float] = None) -> None:
-        """Take one env_status (parsed key-values)."""
+    def on_status(self, values: dict, now: Optional[float] = None, message: str = '') -> None:
+        """Take one env_status (parsed key-values; ``message``: the env's 'paused', ...)."""
+        if message == 'paused':
+            self.paused = self.paused_by_env = True
+        elif message == 'running' and self.paused_by_env:
+            self.paused = self.paused_by_env = False
         position = -1
         if self.milestone_of is not None:
             position = self.milestone_of(values)

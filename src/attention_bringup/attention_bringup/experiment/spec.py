@@ -18,7 +18,9 @@ file stem (``attention_experiment teaching``). Its fields:
   ``parameters`` go on top of the spec's, in ``<out>/<arm>_params.yaml``);
 - ``comparisons``: each ``{arm, baseline}``; ``measures``: what they compare;
   ``targets``: ``{arm: {...}}`` (read by the plug-in); ``settings``: anything else the plug-in
-  reads.
+  reads;
+- ``extends``: another spec (a shipped name, or a file beside this one) whose fields this one
+  starts from (``load``).
 """
 
 from dataclasses import dataclass, field, replace
@@ -229,13 +231,48 @@ def spec_path(name_or_path: str) -> Path:
     return shipped
 
 
-def load(name_or_path: str) -> Spec:
-    """Read and check a spec (``spec_path``)."""
-    path = spec_path(name_or_path)
+def _read(path: Path) -> dict:
     try:
         data = yaml.safe_load(path.read_text())
     except OSError as error:
         raise SpecError(f'{path}: cannot read it: {error}') from error
     except yaml.YAMLError as error:
         raise SpecError(f'{path}: not valid YAML: {error}') from error
-    return from_dict(data or {}, str(path))
+    if data is not None and not isinstance(data, Mapping):
+        raise SpecError(f'{path}: a spec is a mapping of fields')
+    return dict(data or {})
+
+
+def _extended(path: Path, chain: Tuple[Path, ...] = ()) -> dict:
+    """
+    Return the fields of the spec in ``path`` with those of the spec it ``extends``.
+
+    ``extends`` names a shipped spec or a file (relative to this one). This spec's fields
+    replace the base's, but ``parameters``, merged node by node (this spec's values win).
+    """
+    if path.resolve() in chain:
+        raise SpecError(f'{path}: extends itself (through {", ".join(map(str, chain))})')
+    data = _read(path)
+    base_name = data.pop('extends', None)
+    if base_name is None:
+        return data
+    if not isinstance(base_name, str) or not base_name:
+        raise SpecError(f'{path}: extends must name a spec')
+    beside = path.parent / base_name
+    base = _extended(beside if beside.is_file() else spec_path(base_name),
+                     chain + (path.resolve(),))
+    merged = {**base, **data}
+    below, above = base.get('parameters'), data.get('parameters')
+    if isinstance(below, Mapping) and isinstance(above, Mapping):  # else from_dict says why
+        merged['parameters'] = dict(below)
+        for node, values in above.items():
+            under = below.get(node)
+            both = isinstance(under, Mapping) and isinstance(values, Mapping)
+            merged['parameters'][node] = {**under, **values} if both else values
+    return merged
+
+
+def load(name_or_path: str) -> Spec:
+    """Read and check a spec (``spec_path``), with the spec it ``extends`` if any."""
+    path = spec_path(name_or_path)
+    return from_dict(_extended(path), str(path))
