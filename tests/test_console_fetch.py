@@ -62,17 +62,18 @@ def test_typed_words_steer_a_trained_learner_to_the_object_they_name(probe, tmp_
     # frame alone (after saliency_timeout_s, 0.5 s by default, it would).
     patient = tmp_path / 'patient.yaml'
     patient.write_text('tamer_node:\n  ros__parameters:\n    saliency_timeout_s: 10.0\n')
+    err_file = open(tmp_path / 'launcher.err', 'w')
     launcher = subprocess.Popen(
         [LAUNCHER, '--task', 'fetch', '--condition', 'language_input', '--no-synthetic',
          '--console', '--console-port', str(port), '--initial-model', str(MODEL),
          '--seed', str(SEED), '--steps', '500', '--no-record',
          '--stall-timeout', str(STALL_S), '--params-file', str(patient),
          '--run-dir', str(tmp_path / 'run')],
-        stdout=subprocess.DEVNULL, stderr=open(tmp_path / 'launcher.err', 'w'))
+        stdout=subprocess.DEVNULL, stderr=err_file)
     typed, carried = [], []
     try:
         assert wait_until(lambda: episode_status(statuses, 0, 'paused') is not None
-                          or launcher.poll() is not None, 180.0)
+                          or launcher.poll() is not None, 180.0, interval=0.1)
         assert launcher.poll() is None, (tmp_path / 'launcher.err').read_text()[-3000:]
         url = f'http://127.0.0.1:{port}/'
 
@@ -87,7 +88,8 @@ def test_typed_words_steer_a_trained_learner_to_the_object_they_name(probe, tmp_
                 for episode in range(EPISODES):
                     # The episode starts paused: the page says so and shows the new room.
                     assert wait_until(
-                        lambda: episode_status(statuses, episode, 'paused') is not None, 60.0)
+                        lambda: episode_status(statuses, episode, 'paused') is not None, 60.0,
+                        interval=0.1)
                     assert await page.wait_for(
                         "document.getElementById('pause').textContent === 'resume'")
                     room = episode_status(statuses, episode, 'paused')
@@ -109,13 +111,14 @@ def test_typed_words_steer_a_trained_learner_to_the_object_they_name(probe, tmp_
                     await page.evaluate("document.getElementById('pause').click()")
                     assert wait_until(
                         lambda: episode_status(statuses, episode, 'episode over') is not None,
-                        60.0), f'episode {episode} did not end'
+                        60.0, interval=0.1), f'episode {episode} did not end'
                     typed.append(target)
                     carried.append(episode_status(statuses, episode, 'episode over')['carrying'])
         asyncio.run(session())
     finally:
         launcher.terminate()
         launcher.wait(timeout=60)
+        err_file.close()
     err = (tmp_path / 'launcher.err').read_text()
     assert 'stalled' not in err and 'no new step' not in err, err[-2000:]
     assert re.search(rf'Trainer console: {re.escape(url)}', err), err[-2000:]
