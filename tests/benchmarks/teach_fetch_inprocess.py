@@ -47,14 +47,13 @@ def run_trial(seed: int, steps: int, heldout: int, mode: str, explore: float, hu
 
     share_the_cpu()
     knobs = vars(HUMAN_LIKE_SETTING) if human_like or stamped_late else {}
+    plain = human_like and not stamped_late  # plain verdicts: the credit window attributes them
     teacher = TaskTeacher(load_knowledge('fetch'), NUM_ACTIONS,
                           TeacherConfig(utterance_interval=-1.0, seed=seed, **knobs))
     config = {'task': 'fetch', 'seed': seed, 'alpha': 0.0, 'update_rate_hz': 1.5,
-              'greedy_margin': 0.1,
-              'credit': 'window' if human_like and not stamped_late else 'step',
+              'greedy_margin': 0.1, 'credit': 'window' if plain else 'step',
               'input_image': 'observation' if mode == 'off' else 'both', 'explore': explore}
-    if human_like and not stamped_late:  # late, sparse, noisy, unstamped: the window
-        # attributes it
+    if plain:  # as attention_train --human-like sets it
         config['window_min_s'], config['window_max_s'] = human_like_window_s(STEP_S)
     config.update(overrides)
     run_dir = workdir / f'seed{seed}'
@@ -88,14 +87,14 @@ def run_trial(seed: int, steps: int, heldout: int, mode: str, explore: float, hu
     for k in range(steps):
         action = act(step)
         step = env.step(action)
-        give(agent, see(step), human_like and not stamped_late)
+        give(agent, see(step), plain)
         if step.done:
             episodes.append((bool(step.state.heldout), action == PICKUP and bool(
                 step.state.carrying), bool(step.state.fetched), begun))
             step = env.reset()
             begun = k + 1
-            give(agent, see(step), human_like and not stamped_late)  # due now: the last
-            # action's verdict, late (the graph's teacher sends it as the new room shows)
+            give(agent, see(step), plain)  # due now: the last action's verdict, late (the
+            # graph's teacher sends it as the new room shows)
     metrics = agent.metrics()
     agent.close()
     env.close()
