@@ -10,6 +10,7 @@ from tamer_node.acting import ActingModel
 from tamer_node.agent import TamerAgent
 from tamer_node.buffer import collate, FeedbackBuffer, Sample
 from tamer_node.config import TamerConfig
+from tamer_node.credit import effect_credit, NS_PER_S, spans_from_stamps, window_credit
 from tamer_node.history import holds, StepHistory
 from tamer_node.learner import Learner, mixture_mse
 from tamer_node.model import Encoder, FEATURE_SIZE, HModel, joystick_parts, PartsHead
@@ -216,6 +217,57 @@ def test_with_held_decisions_late_credit_lands_on_the_steps_that_chose(tmp_path)
     assert credited and {s.stamp for s in credited} <= chose
     assert sum(s.weight for s in credited) == pytest.approx(1.0, abs=1e-5)
     assert 6 <= len(credited) <= 9  # 1.4 s of 15 Hz steps in decisions of 3, not 21 steps
+
+
+# Credit anchored at the step's effect (credit_anchor 'effect').
+def grid_spans(steps, now_s):
+    """Spans of steps 1 s long, starting at 1, 2, ... s (MiniGrid's clock)."""
+    return spans_from_stamps([(i + 1) * NS_PER_S for i in range(steps)], int(now_s * NS_PER_S))
+
+
+def test_a_verdict_on_a_grid_step_falls_on_the_steps_whose_effect_it_followed():
+    # A verdict at 12 s, 0.2-2.5 s late: the steps whose result showed at 9.5-11.8 s, that is
+    # at 10 s and 11 s, are the ones started at 9 s and 10 s; the span model adds 11 s too.
+    spans = grid_spans(12, 12.0)
+    effect = effect_credit(spans, 12 * NS_PER_S, 0.2, 2.5)
+    assert effect == {9 * NS_PER_S: 0.5, 10 * NS_PER_S: 0.5}
+    span = window_credit(spans, 12 * NS_PER_S, 0.2, 2.5)
+    assert set(span) == {9 * NS_PER_S, 10 * NS_PER_S, 11 * NS_PER_S}
+    assert max(span.values()) < 0.5
+
+
+def test_the_step_on_screen_has_shown_no_effect_yet():
+    spans = grid_spans(3, 3.0)  # step 3 s is on screen; step 2 s's result shows right now
+    assert effect_credit(spans, 3 * NS_PER_S, 0.0, 2.5) == {1 * NS_PER_S: 1.0}
+    assert effect_credit(spans, 3 * NS_PER_S, 3.0, 4.0) == {}
+    with pytest.raises(ValueError):
+        effect_credit(spans, 3 * NS_PER_S, 1.0, 1.0)
+
+
+def test_the_agent_credits_a_plain_verdict_by_the_anchor_it_is_set_to(tmp_path):
+    frames = np.random.default_rng(2).integers(0, 256, (4, 210, 160, 3), np.uint8)
+    credited = {}
+    for anchor in ('span', 'effect'):
+        run = tmp_path / anchor
+        config = TamerConfig(run_dir=str(run), credit='window', credit_anchor=anchor,
+                             window_min_s=0.2, window_max_s=2.5, pace_updates=0.0,
+                             checkpoint_period_s=0.0, update_rate_hz=0.0)
+        agent = TamerAgent(config, run, encoder=Encoder())
+        agent.start()
+        try:
+            for i in range(12):
+                agent.on_observation((i + 1) * NS_PER_S, frames[i % 4])
+            agent.on_feedback(1.0, 'plain')  # at 12 s, the newest observation's stamp
+            deadline = time.monotonic() + 10
+            while not len(agent.buffer) and time.monotonic() < deadline:
+                time.sleep(0.01)
+            credited[anchor] = {s.stamp // NS_PER_S: s.weight for s in agent.buffer.samples()}
+        finally:
+            agent.close()
+    assert credited['effect'] == pytest.approx({9: 0.5, 10: 0.5})
+    assert set(credited['span']) == {9, 10, 11}
+    with pytest.raises(ValueError, match='credit_anchor'):
+        TamerConfig(credit_anchor='press').validate()
 
 
 def test_a_resume_finds_the_decisions_the_acting_path_made():

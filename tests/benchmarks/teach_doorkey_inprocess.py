@@ -4,7 +4,9 @@ Teaching DoorKey in one process: the real MiniGrid level, the teacher and TamerA
 The graph's loop, one step after the other, as ``teach_inprocess.py`` does for Room 1: the agent
 acts on the observation, the env steps, the teacher sees the step's status values (as it reads
 env_status) and judges the previous action; feedback without delay goes in stamped, late
-feedback plain (stamped by the agent on arrival, credited by its window). The settings are
+feedback plain (stamped by the agent on arrival with the newest step it saw: as in the graph, a
+verdict released when the teacher sees a step arrives after that step's observation; credited
+by its window). The settings are
 DoorKey's (``config/tasks/doorkey.yaml``: 8 x 8, four distractors, 100 steps an episode; the
 learner's 1.5 minibatch updates per step); the last ``--heldout`` steps are on held-out layouts.
 
@@ -57,17 +59,18 @@ def run_trial(seed: int, steps: int, heldout: int, human_like: bool, overrides: 
     episodes = []  # (held out, solved, sub-goals)
     started = time.monotonic()
     step = env.reset()
-    see(step)
+    due = see(step)
     for _ in range(steps):
         action = agent.on_observation(step.sim_time_ns, step.observation)
+        give(agent, due, human_like)  # released as this step showed, heard after it (the graph)
         step = env.step(action)
-        give(agent, see(step), human_like)
+        due = see(step)
         if step.done:
             values = parse_status(status_values(step, counters, False))
             episodes.append((bool(step.state.heldout), bool(values.get('at_goal')),
                              int(values.get('subgoals', 0))))
             step = env.reset()
-            give(agent, see(step), human_like)  # due now, late: sent as the new layout shows
+            due += see(step)  # due now, late: sent as the new layout shows
     metrics = agent.metrics()
     agent.close()
     env.close()

@@ -6,7 +6,9 @@ with the saliency node's work done here: each frame is matched and the mission (
 <target>", said at every episode's start and in force all episode) rendered in ``--mode``
 (mask: language_input; language: its first, blurred design) for a learner with ``input_image``
 both. The teacher judges every action on time (stamped), or as a person would
-(``--human-like``: plain, late, sparse, 10 % wrong; the credit window). ``--explore E``: the
+(``--human-like``: plain, late, sparse, 10 % wrong; the credit window). As in the graph, a
+verdict the teacher releases when it sees a step reaches the learner after that step's
+observation did (so the learner stamps it with that step). ``--explore E``: the
 learner's ``explore`` (a share E of its decisions at random, judged too): the greedy learner
 otherwise never tries a pick-up in front of the target once pick-ups elsewhere taught it that
 they are bad.
@@ -82,19 +84,19 @@ def run_trial(seed: int, steps: int, heldout: int, mode: str, explore: float, hu
     episodes = []  # (held out, picked, solved, started at step)
     started = time.monotonic()
     step = env.reset()
-    see(step)
+    due = see(step)
     begun = 0
     for k in range(steps):
         action = act(step)
+        give(agent, due, plain)  # released as this step showed, heard after it (the graph's order)
         step = env.step(action)
-        give(agent, see(step), plain)
+        due = see(step)
         if step.done:
             episodes.append((bool(step.state.heldout), action == PICKUP and bool(
                 step.state.carrying), bool(step.state.fetched), begun))
             step = env.reset()
             begun = k + 1
-            give(agent, see(step), plain)  # due now: the last action's verdict, late (the
-            # graph's teacher sends it as the new room shows)
+            due += see(step)  # the last action's verdict may fall due as the new room shows
     metrics = agent.metrics()
     agent.close()
     env.close()

@@ -19,6 +19,7 @@ from attention_common.run_files import (
 import numpy as np
 from tamer_node.buffer import FeedbackBuffer
 from tamer_node.config import TamerConfig
+from tamer_node.delay_fit import DelayFit
 from tamer_node.events import event_from_entry, FeedbackEvent
 from tamer_node.history import holds, other_kind, StepHistory
 from tamer_node.learner import Learner
@@ -68,8 +69,9 @@ class Checkpoints:
 
     def __init__(self, config: TamerConfig, learner: Learner, buffer: FeedbackBuffer,
                  history: StepHistory, journal: StepJournal, disk: DiskWriter, run_dir: Path,
-                 log: Callable[[str, str], None]):
+                 log: Callable[[str, str], None], delays: Optional[DelayFit] = None):
         self.config = config
+        self.delays = delays
         self.learner = learner
         self.buffer = buffer
         self.history = history
@@ -106,6 +108,8 @@ class Checkpoints:
             'session': self.history.session,
             'saved_at': time.time(),
         }
+        if self.delays is not None:
+            state['delay_fit'] = self.delays.state()
 
         def write() -> None:
             self.journal.drain()  # every step the checkpoint refers to is on disk first
@@ -121,6 +125,8 @@ class Checkpoints:
         if checkpoint.get('format') != CHECKPOINT_FORMAT:
             raise ValueError('the checkpoint was not written by this tamer_node version')
         self.learner.load_state_dict(checkpoint['learner'])
+        if self.delays is not None and 'delay_fit' in checkpoint:
+            self.delays.load(checkpoint['delay_fit'])
         buffer_state, missing = checkpoint['buffer'], 0
         if 'states' not in buffer_state:
             buffer_state, missing = self._find_images(

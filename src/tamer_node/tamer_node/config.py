@@ -10,6 +10,7 @@ from attention_tasks.task import DEFAULT_TASK, load_task
 
 CREDIT_MODES = ('step', 'window')
 CREDIT_LOSSES = ('each', 'mixture')
+CREDIT_ANCHORS = ('span', 'effect')
 INPUT_IMAGES = ('observation', 'saliency', 'both')
 """'both': H sees the step's frame and its saliency image side by side (language_input)."""
 TEXT_CONDITIONINGS = ('off', 'film')
@@ -34,6 +35,12 @@ class TamerConfig:
     """Credit window: the shortest delay (simulation s) between an action and feedback on it."""
     window_max_s: float = 4.0
     """Credit window: the longest delay (simulation s) between an action and feedback on it."""
+    credit_anchor: str = 'span'
+    """What moment of a step the window's delay runs from: 'span', any moment while the step
+    was shown, equally likely (Deep TAMER: a world that moves while the action lasts); 'effect',
+    the moment the step's result was shown, the next observation (a world that changes in
+    discrete steps, as MiniGrid's 1 s steps: a person judges the move when they see it made).
+    With 'effect' a verdict falls on one or two 1 s steps where 'span' spreads it on three."""
     credit_loss: str = 'each'
     """How a feedback's credited steps are fitted: 'each' regresses every one to h, weighted by
     its credit (Deep TAMER); 'mixture' regresses their credit-weighted mean of H to h (one
@@ -47,6 +54,15 @@ class TamerConfig:
     it bounds how far H's predictions move credit (0.02: at most 49 to 1; 0.1, the human-like
     teacher's true rate, moved credit less: agreement with the expert 0.5 against 0.6-0.7 in
     the last steps of 10,000, in one process, 2 tuning seeds)."""
+    credit_delay_fit: bool = False
+    """Fit the trainer's delay online (delay_fit.py, needs credit_posterior): the window's flat
+    prior on [window_min_s, window_max_s] becomes a histogram learned by EM from where credit
+    by prediction puts each verdict, so a wide window for a trainer of unknown delay narrows to
+    theirs. False: the flat window (Deep TAMER)."""
+    credit_delay_bin_s: float = 0.1
+    """Delay fit: the width of the histogram's bins (simulation s)."""
+    credit_delay_prior: float = 20.0
+    """Delay fit: the flat prior's weight, in verdicts (spread evenly over the bins)."""
     credit_refit_updates: int = 10
     """Credit by prediction: re-weigh every sample of the buffer with the current H after this
     many updates (0 = only when a feedback is paired)."""
@@ -162,6 +178,9 @@ class TamerConfig:
         load_task(self.task)  # UnknownTask (a ValueError) names the installed ones
         if self.credit not in CREDIT_MODES:
             raise ValueError(f'credit must be one of {CREDIT_MODES}, got {self.credit!r}')
+        if self.credit_anchor not in CREDIT_ANCHORS:
+            raise ValueError(
+                f'credit_anchor must be one of {CREDIT_ANCHORS}, got {self.credit_anchor!r}')
         if self.credit_loss not in CREDIT_LOSSES:
             raise ValueError(
                 f'credit_loss must be one of {CREDIT_LOSSES}, got {self.credit_loss!r}')
@@ -179,6 +198,12 @@ class TamerConfig:
         if self.text_conditioning != 'off' and self.fine_tune_encoder:
             raise ValueError("text_conditioning 'film' works on the frozen encoder's features; "
                              'fine_tune_encoder must be false')
+        if self.credit_delay_fit and not self.credit_posterior:
+            raise ValueError('credit_delay_fit learns from credit by prediction: set '
+                             'credit_posterior true too')
+        if self.credit_delay_fit and self.decision_period_s > 0.0:
+            raise ValueError('credit_delay_fit fits the delay of single steps: it cannot be '
+                             'used with decision_period_s > 0')
         if self.input_image == 'both' and self.fine_tune_encoder:
             raise ValueError("input_image 'both' works on the frozen encoder's features; "
                              'fine_tune_encoder must be false')
@@ -206,6 +231,8 @@ class TamerConfig:
             'decision_period_s': self.decision_period_s >= 0.0,
             'credit_noise': 0.0 <= self.credit_noise < 0.5,
             'credit_refit_updates': self.credit_refit_updates >= 0,
+            'credit_delay_bin_s': self.credit_delay_bin_s > 0.0,
+            'credit_delay_prior': self.credit_delay_prior > 0.0,
             'learner_nice': 0 <= self.learner_nice <= 19,
             'pace_updates': self.pace_updates >= 0.0,
             'pace_max_s': self.pace_max_s >= 0.0,

@@ -11,6 +11,12 @@ moment its observation was shown (its stamp) until the next observation replaced
   density). A step's weight is the probability that the delay lands in its span: the overlap of
   [t_start, t_end) with [t - max, t - min] divided by (max - min). Weights of all steps sum to at
   most 1; a pair with zero weight gets no sample at all.
+- ``window`` anchored at the ``effect`` (``credit_anchor``): in a world that changes in discrete
+  steps (MiniGrid: 1 s a step) a person judges an action when its result is shown, the next
+  observation, not at a moment spread over the step's span. Step T's delay is then
+  t - t_end(T); every acted step whose delay lies in [min, max] is equally likely, its weight
+  1 / (their number). The span model spreads one verdict over about (max - min + step) / step
+  steps; this one over (max - min) / step.
 """
 
 from typing import Dict, Iterable, List, Sequence, Tuple
@@ -47,6 +53,23 @@ def window_credit(spans: Sequence[Span], feedback_time: int,
         if weight > 0.0:
             credit[stamp] = weight
     return credit
+
+
+def effect_credit(spans: Sequence[Span], feedback_time: int,
+                  min_delay_s: float = 0.2, max_delay_s: float = 4.0) -> Dict[int, float]:
+    """
+    Return {stamp: 1/n} for the n steps whose result showed ``min``-``max`` s before feedback.
+
+    A step's result is shown when its span ends (the next observation); the newest step, whose
+    span runs to ``feedback_time``, has shown none yet.
+    """
+    min_delay = int(round(min_delay_s * NS_PER_S))
+    max_delay = int(round(max_delay_s * NS_PER_S))
+    if max_delay <= min_delay:
+        raise ValueError('the credit window needs min_delay_s < max_delay_s')
+    shown = [stamp for stamp, _, t_end in spans
+             if t_end < feedback_time and min_delay <= feedback_time - t_end <= max_delay]
+    return {stamp: 1.0 / len(shown) for stamp in shown}
 
 
 def spans_from_stamps(stamps: Sequence[int], now: int) -> List[Span]:

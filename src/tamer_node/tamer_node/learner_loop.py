@@ -31,6 +31,7 @@ from tamer_node.acting import SnapshotSlot
 from tamer_node.buffer import collate, FeedbackBuffer, Sample
 from tamer_node.checkpointing import CheckpointClock, Checkpoints, journal_histories
 from tamer_node.config import TamerConfig
+from tamer_node.delay_fit import DelayFit
 from tamer_node.events import FeedbackEvent, LEARNER_COUNTERS
 from tamer_node.history import StepHistory
 from tamer_node.learner import Learner
@@ -51,8 +52,12 @@ class LearnerWorker(threading.Thread):
         self.buffer = buffer
         self.history = history
         self.slot = slot
+        self.delays = (DelayFit(config.window_min_s, config.window_max_s,
+                                config.credit_delay_bin_s, config.credit_delay_prior)
+                       if config.credit_delay_fit else None)
+        """The trainer's delay as fitted so far (``credit_delay_fit``), else None."""
         self.checkpoints = Checkpoints(config, learner, buffer, history, journal, disk,
-                                       run_dir, log)
+                                       run_dir, log, self.delays)
         self._log = log
         self._rng = np.random.default_rng(config.seed)
         self._inbox: 'collections.deque[FeedbackEvent]' = collections.deque()
@@ -142,6 +147,9 @@ class LearnerWorker(threading.Thread):
         stats['buffer/with_saliency_fraction'] = self.buffer.companion_fraction()
         stats['model/version'] = self.learner.updates
         stats['feedback/applied_seq'] = self.applied_seq
+        stats['credit/delay_mean_s'] = stats['credit/delay_sd_s'] = math.nan
+        if self.delays is not None:  # (read unlocked: a torn read is one metrics row off)
+            stats['credit/delay_mean_s'], stats['credit/delay_sd_s'] = self.delays.moments_s()
         return stats
 
     def period_losses(self) -> dict:
@@ -255,9 +263,15 @@ class LearnerWorker(threading.Thread):
 
     def process(self, event: FeedbackEvent, history: StepHistory) -> List[Sample]:
         """Count the event and return its samples (already added to the buffer)."""
-        paired = pair(event, history, self.config, self.learner.model, self._wants_companion())
+        paired = pair(event, history, self.config, self.learner.model, self._wants_companion(),
+                      self.delays)
         if paired.warning is not None:
             self._log('warn', paired.warning)
+        if self.delays is not None and paired.delays:  # the M-step: where the verdict went
+            total = sum(s.weight for s in paired.samples)
+            if total > 0.0:
+                self.delays.observe([paired.delays[s.stamp] for s in paired.samples],
+                                    [s.weight / total for s in paired.samples])
         self.buffer.extend(paired.samples)
         with self._lock:
             self.counters.update(paired.counts)

@@ -12,12 +12,13 @@ waits forever, and the events behind it wait no longer than that.
 """
 
 import collections
-from typing import Counter, Dict, List, NamedTuple, Optional
+from typing import Counter, Dict, List, NamedTuple, Optional, Tuple
 
 import numpy as np
 from tamer_node.buffer import Sample
 from tamer_node.config import TamerConfig
-from tamer_node.credit import step_credit, window_credit
+from tamer_node.credit import effect_credit, step_credit, window_credit
+from tamer_node.delay_fit import candidate_intervals, DelayFit, fitted_credit, Interval
 from tamer_node.events import FeedbackEvent
 from tamer_node.history import other_kind, StepHistory, StepRecord
 from tamer_node.model import HModel, to_input
@@ -33,20 +34,38 @@ class Paired(NamedTuple):
     """Counter increments (``events.LEARNER_COUNTERS``)."""
     warning: Optional[str]
     """Why an 'ok' feedback is not learned from, or None."""
+    delays: Dict[int, Interval] = {}
+    """With a delay fit: each credited step's delay (the fit learns from them)."""
 
 
-def credit(event: FeedbackEvent, history: StepHistory, config: TamerConfig) -> Dict[int, float]:
+def credit(event: FeedbackEvent, history: StepHistory, config: TamerConfig,
+           delays: Optional[DelayFit] = None) -> Dict[int, float]:
     """Return {stamp: weight} of the steps in ``history`` that ``event`` credits."""
+    return credit_and_delays(event, history, config, delays)[0]
+
+
+def credit_and_delays(event: FeedbackEvent, history: StepHistory, config: TamerConfig,
+                      delays: Optional[DelayFit] = None
+                      ) -> Tuple[Dict[int, float], Dict[int, Interval]]:
+    """Return ``credit``'s {stamp: weight}, and with a delay fit each step's delay."""
+    intervals: Dict[int, Interval] = {}
     if event.credit == 'window':
         if event.now is None:
-            return {}
-        steps = window_credit(history.acted_spans(event.now), event.now,
-                              config.window_min_s, config.window_max_s)
+            return {}, {}
+        spans = history.acted_spans(event.now)
+        if delays is not None:  # the window's prior as fitted so far (delay_fit.py)
+            intervals = candidate_intervals(spans, event.now, config.credit_anchor)
+            steps = fitted_credit(intervals, delays)
+        else:
+            spread = effect_credit if config.credit_anchor == 'effect' else window_credit
+            steps = spread(spans, event.now, config.window_min_s, config.window_max_s)
     else:
         record = history.get(event.stamp) if event.stamp is not None else None
         known = [event.stamp] if record is not None and record.learned_action is not None else []
         steps = step_credit(event.stamp, known)
-    return to_decisions(steps, history) if config.decision_period_s > 0.0 else steps
+    if config.decision_period_s > 0.0:
+        steps = to_decisions(steps, history)
+    return steps, intervals
 
 
 def to_decisions(steps: Dict[int, float], history: StepHistory) -> Dict[int, float]:
@@ -133,7 +152,7 @@ def by_prediction(samples: List[Sample], model: HModel, noise: float) -> List[Sa
 
 
 def pair(event: FeedbackEvent, history: StepHistory, config: TamerConfig, model: HModel,
-         wants_companion: bool) -> Paired:
+         wants_companion: bool, delays: Optional[DelayFit] = None) -> Paired:
     """Return the samples of ``event`` on the steps of ``history``, and what to count."""
     samples: List[Sample] = []
     counts = collections.Counter({'feedback/processed': 1})
@@ -145,7 +164,8 @@ def pair(event: FeedbackEvent, history: StepHistory, config: TamerConfig, model:
                    '(the env started over): kept in the log, not learned from')
     elif event.status == 'ok':
         kind = config.input_image
-        for stamp, weight in sorted(credit(event, history, config).items()):
+        steps, intervals = credit_and_delays(event, history, config, delays)
+        for stamp, weight in sorted(steps.items()):
             record = history.get(stamp)
             acted_on = 'observation' if kind == 'both' else kind
             if record is None or record.image(acted_on) is None:
@@ -184,4 +204,5 @@ def pair(event: FeedbackEvent, history: StepHistory, config: TamerConfig, model:
         counts['feedback/unmatched'] += 1
     if not wants_companion:
         counts.pop('pairing/without_saliency', None)
-    return Paired(samples, counts, warning)
+    return Paired(samples, counts, warning,
+                  {s.stamp: intervals[s.stamp] for s in samples if s.stamp in intervals})
