@@ -1,6 +1,8 @@
 """The experiment engine: specs, planning, and a whole run with a stand-in launcher (no ROS)."""
 
 import json
+from pathlib import Path
+import shutil
 import sys
 
 from attention_bringup.experiment import cli, engine, runner, spec as specs
@@ -185,3 +187,15 @@ def test_a_spec_extends_another_and_changes_only_what_it_says(tmp_path):
     (tmp_path / 'b.yaml').write_text(yaml.safe_dump({'extends': 'a.yaml'}))
     with pytest.raises(SpecError, match='extends itself'):
         specs.load(str(tmp_path / 'a.yaml'))
+
+
+def test_a_spec_of_one_arm_reports_without_an_empty_comparisons_table(tmp_path):
+    # The words_budget study's own trial records, reported into a folder of the test's.
+    records = Path(__file__).parent.parent / 'docs' / 'study_words_budget'
+    out, report = tmp_path / 'out', tmp_path / 'budget.md'
+    shutil.copytree(records / 'language_input_human_like', out / 'language_input_human_like')
+    assert cli.main(['words_budget', '--report-only', '--out', str(out),
+                     '--report', str(report)]) == 0
+    text = report.read_text()
+    assert '| `language_input_human_like` |' in text and '40000 agent steps' in text
+    assert 'Comparisons' not in text

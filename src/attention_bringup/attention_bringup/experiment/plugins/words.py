@@ -157,8 +157,9 @@ def write_report(spec: Spec, result: dict, by_arm: Mapping, context: Mapping) ->
         *markdown.table(['arm', 'what', 'trials', 'held-out success', 'held-out pooled',
                          'held-out episodes ended by a pick-up', 'the target, of those',
                          'late-training success'], rows), '',
-        '## Comparisons (held-out success)', '',
-        *markdown.table(['comparison', 'difference', 'Hedges g', 'Welch p'], compared), '',
+        *(['## Comparisons (held-out success)', '',
+           *markdown.table(['comparison', 'difference', 'Hedges g', 'Welch p'], compared), '']
+          if compared else []),  # (a spec of one arm compares nothing)
         f'Wall time of the trials: {markdown.minutes(result["wall_time_s"])}.', '']
     report = Path(spec.report)
     discussion = report.with_name(f'{report.stem}_discussion.md')
