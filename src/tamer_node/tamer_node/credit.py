@@ -32,13 +32,19 @@ def step_credit(judged_stamp: int, known_stamps: Iterable[int]) -> Dict[int, flo
     return {judged_stamp: 1.0} if judged_stamp in set(known_stamps) else {}
 
 
-def window_weight(t_start: int, t_end: int, feedback_time: int,
-                  min_delay_s: float = 0.2, max_delay_s: float = 4.0) -> float:
-    """Probability mass of the uniform delay density that falls on [t_start, t_end)."""
+def window_ns(min_delay_s: float, max_delay_s: float) -> Tuple[int, int]:
+    """Return the credit window's (min, max) delay in ns; refuse an empty window."""
     min_delay = int(round(min_delay_s * NS_PER_S))
     max_delay = int(round(max_delay_s * NS_PER_S))
     if max_delay <= min_delay:
         raise ValueError('the credit window needs min_delay_s < max_delay_s')
+    return min_delay, max_delay
+
+
+def window_weight(t_start: int, t_end: int, feedback_time: int,
+                  min_delay_s: float = 0.2, max_delay_s: float = 4.0) -> float:
+    """Probability mass of the uniform delay density that falls on [t_start, t_end)."""
+    min_delay, max_delay = window_ns(min_delay_s, max_delay_s)
     lo, hi = feedback_time - max_delay, feedback_time - min_delay
     overlap = min(t_end, hi) - max(t_start, lo)
     return overlap / (max_delay - min_delay) if overlap > 0 else 0.0
@@ -63,10 +69,7 @@ def effect_credit(spans: Sequence[Span], feedback_time: int,
     A step's result is shown when its span ends (the next observation); the newest step, whose
     span runs to ``feedback_time``, has shown none yet.
     """
-    min_delay = int(round(min_delay_s * NS_PER_S))
-    max_delay = int(round(max_delay_s * NS_PER_S))
-    if max_delay <= min_delay:
-        raise ValueError('the credit window needs min_delay_s < max_delay_s')
+    min_delay, max_delay = window_ns(min_delay_s, max_delay_s)
     shown = [stamp for stamp, _, t_end in spans
              if t_end < feedback_time and min_delay <= feedback_time - t_end <= max_delay]
     return {stamp: 1.0 / len(shown) for stamp in shown}

@@ -267,7 +267,7 @@ class LearnerWorker(threading.Thread):
                       self.delays)
         if paired.warning is not None:
             self._log('warn', paired.warning)
-        if self.delays is not None and paired.delays:  # the M-step: where the verdict went
+        if paired.delays:  # the M-step: where the verdict went
             total = sum(s.weight for s in paired.samples)
             if total > 0.0:
                 self.delays.observe([paired.delays[s.stamp] for s in paired.samples],

@@ -34,8 +34,8 @@ class Paired(NamedTuple):
     """Counter increments (``events.LEARNER_COUNTERS``)."""
     warning: Optional[str]
     """Why an 'ok' feedback is not learned from, or None."""
-    delays: Dict[int, Interval] = {}
-    """With a delay fit: each credited step's delay (the fit learns from them)."""
+    delays: Optional[Dict[int, Interval]] = None
+    """With a delay fit: each credited step's delay (the fit learns from them), else None."""
 
 
 def credit(event: FeedbackEvent, history: StepHistory, config: TamerConfig,
@@ -155,6 +155,7 @@ def pair(event: FeedbackEvent, history: StepHistory, config: TamerConfig, model:
          wants_companion: bool, delays: Optional[DelayFit] = None) -> Paired:
     """Return the samples of ``event`` on the steps of ``history``, and what to count."""
     samples: List[Sample] = []
+    intervals: Dict[int, Interval] = {}
     counts = collections.Counter({'feedback/processed': 1})
     warning = None
     if event.status == 'ok' and event.session != history.session:
@@ -205,4 +206,4 @@ def pair(event: FeedbackEvent, history: StepHistory, config: TamerConfig, model:
     if not wants_companion:
         counts.pop('pairing/without_saliency', None)
     return Paired(samples, counts, warning,
-                  {s.stamp: intervals[s.stamp] for s in samples if s.stamp in intervals})
+                  {s.stamp: intervals[s.stamp] for s in samples} if intervals else None)
