@@ -1,5 +1,6 @@
 """The experiment engine: specs, planning, and a whole run with a stand-in launcher (no ROS)."""
 
+from dataclasses import replace
 import json
 from pathlib import Path
 import shutil
@@ -43,6 +44,7 @@ def test_every_shipped_spec_loads_with_its_plugin(name):
     ({'parameters': {'env_node': 3}}, 'parameters must map node names'),
     ({'arms': [{'name': 'x', 'condition': 'vanilla', 'parameters': ['mode']}]},
      'arm x: parameters must map node names'),
+    ({'program': 'attention_dream'}, 'program must be attention_train or attention_replay'),
 ])
 def test_a_bad_spec_is_refused_naming_the_file_and_what_is_wrong(tmp_path, change, says):
     data = {k: v for k, v in dict(GOOD, **change).items() if v is not None}
@@ -199,3 +201,45 @@ def test_a_spec_of_one_arm_reports_without_an_empty_comparisons_table(tmp_path):
     text = report.read_text()
     assert '| `language_input_human_like` |' in text and '40000 agent steps' in text
     assert 'Comparisons' not in text
+
+
+def test_a_replay_spec_runs_attention_replay_on_its_bag_and_no_budget_option(tmp_path):
+    spec = specs.load('replay').select(seeds=[3], out=str(tmp_path / 'out'),
+                                       runs_dir=str(tmp_path / 'runs'))
+    jobs, _ = engine.plan(spec)
+    assert [job.condition for job in jobs] == list(spec.arm_names)
+    command = runner.launcher_command(tmp_path / 'bin' / 'attention_train', jobs[0])
+    assert command[:3] == [str(tmp_path / 'bin' / 'attention_replay'), 'runs/replay_session',
+                           '--fast']
+    assert '--steps' not in command and command[command.index('--seed') + 1] == '3'
+    assert command[command.index('--run-dir') + 1] == str(tmp_path / 'runs' / 'vanilla' / 'seed3')
+
+
+def test_a_replay_spec_is_refused_without_its_bag_or_with_another_budget(tmp_path):
+    from attention_bringup.experiment.plugins import replay
+    from session_bag import metadata
+    spec = specs.load('replay')
+    with pytest.raises(SpecError, match='neither a bag folder'):
+        replay.check(spec.select(budget=5000))  # (runs/replay_session is not recorded here)
+    bag = tmp_path / 'bag'
+    bag.mkdir()
+    metadata.write(bag, {'rosbag2_bagfile_information': {'topics_with_message_count': [
+        {'topic_metadata': {'name': '/observation'}, 'message_count': 120}]}})
+    with pytest.raises(SpecError, match='holds 120 steps; set budget: 120'):
+        replay.check(replace(spec, launcher_args=(str(bag), '--fast')))
+    replay.check(replace(spec, launcher_args=(str(bag),), budget=120))
+
+
+def test_a_replay_trials_steps_are_the_replays_own(tmp_path):
+    from attention_bringup.experiment import trials
+    run_dir = tmp_path / 'run'
+    trials.write_json(run_dir / 'summary.json', {'kind': 'replay', 'status': 'completed',
+                                                 'steps': 120})
+    (run_dir / 'attention_replay.log').write_text('a node said why it stopped\n')
+    record = trials.build_record('language', 3, 120, run_dir, 0, 5.0,
+                                 launcher_log='attention_replay.log')
+    assert (record['steps'], record['outcome']) == (120, trials.COMPLETED)
+    short = trials.build_record('language', 3, 121, run_dir, 0, 5.0,
+                                launcher_log='attention_replay.log')
+    assert short['outcome'] == trials.CRASHED
+    assert 'said why' in short['problem']['launcher_output_tail']

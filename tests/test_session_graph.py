@@ -98,12 +98,16 @@ def test_the_session_replays_into_a_fresh_learner_that_then_acts(recorded_run, t
     # Every observation was answered by the new learner; every feedback and utterance logged,
     # each feedback on the very step the session's learner put it on.
     assert summary['steps'] == bag['/observation'] and summary['unanswered'] == 0
-    assert summary['compared'] == summary['steps']
+    # (under load the world may publish a step or two past the budget before it stops: the
+    # session's agent never acted on those, so they cannot be compared)
+    missing = summary['without_session_action']
+    assert missing <= bag['/observation'] - session['steps']
+    assert summary['compared'] == summary['steps'] - missing
     assert summary['receipts'] == bag['/feedback_stamped'] + bag['/utterance']
     same = summary['feedback_same_step']
     assert same['compared'] == bag['/feedback_stamped'] and same['same'] == same['compared']
     assert 0.0 <= summary['agreement'] <= 1.0 and summary['curve']
-    assert int(summary['metrics']['act/taken']) == summary['steps']
+    assert int(summary['metrics']['act/taken']) == summary['steps'] - missing
     assert int(summary['metrics']['feedback/count']) > 0  # it learned from them
     with open(tmp_path / 'replay' / 'replay_steps.csv') as steps:
         rows = list(csv.DictReader(steps))
@@ -128,12 +132,17 @@ def test_the_session_replays_into_a_fresh_learner_that_then_acts(recorded_run, t
 
 
 @pytest.mark.topics
-def test_another_condition_learns_from_the_same_recorded_feedback(recorded_run, tmp_path):
+def test_another_condition_learns_from_the_same_recorded_feedback_in_a_replay_study(
+        recorded_run, tmp_path):
     run_dir, _ = recorded_run
-    result = _replay(run_dir, tmp_path / 'blind', '--fast', '--condition', 'blind_obs')
+    out = tmp_path / 'study'
+    command = [str(BIN / 'attention_replay'), str(run_dir), '--fast', '--conditions',
+               'blind_obs', '--out', str(out)]
+    result = subprocess.run(command, capture_output=True, text=True, timeout=300)
     assert result.returncode == 0, result.stderr[-4000:]
-    summary = _json(tmp_path / 'blind' / 'summary.json')
-    params = yaml.safe_load((tmp_path / 'blind' / 'replay_params.yaml').read_text())
+    blind = out / 'blind_obs' / 'seed4'  # (the session's seed)
+    summary = _json(blind / 'summary.json')
+    params = yaml.safe_load((blind / 'replay_params.yaml').read_text())
     assert params['tamer_node']['ros__parameters']['input_image'] == 'saliency'
     assert params['saliency_node']['ros__parameters']['mode'] == 'blind_agent'
     # The session waited for its recorder; a replay has none, so its nodes must not wait.
@@ -141,6 +150,16 @@ def test_another_condition_learns_from_the_same_recorded_feedback(recorded_run, 
                for node in ('saliency_node', 'tamer_node'))
     assert (summary['condition'], summary['session_condition']) == ('blind_obs', 'language')
     assert summary['unanswered'] == 0 and summary['feedback_same_step']['same'] > 0
+    # The study ran on the experiment engine: a result file, the table, the report.
+    record = _json(out / 'trials' / 'blind_obs' / 'seed4.json')
+    assert record['outcome'] == 'completed' and record['steps'] == summary['steps']
+    assert record['replay']['agreement'] == summary['agreement']
+    assert [row['condition'] for row in _json(out / 'replay_study.json')] == ['blind_obs']
+    assert '| blind_obs |' in result.stdout and '| blind_obs | 1 |' in (
+        out / 'replay_study.md').read_text()
+    again = subprocess.run(command, capture_output=True, text=True, timeout=120)
+    assert again.returncode == 0 and 'already have results' in again.stderr
+    assert _json(out / 'replay_study.json')[0]['agreement'] == summary['agreement']
 
 
 @pytest.mark.topics

@@ -26,6 +26,8 @@ LOGS_DIR = 'logs'
 """One log per node (and ROS's own logs under ``ros/``)."""
 LAUNCHER_LOG = 'attention_train.log'
 """The launcher's own terminal output, written by the study's runner."""
+REPLAY_LOG = 'attention_replay.log'
+"""A replay trial's terminal output (``LAUNCHER_LOG``'s place in a replay's run folder)."""
 
 # -- beside the run folders: attention_study's and attention_teaching's output folder ----------
 STUDY_LOG = 'study_log.json'

@@ -95,7 +95,7 @@ def plan(spec: Spec, retry_crashed: bool = False, params: Optional[Path] = None
                 arm_runs(spec, arm).resolve(), retry_crashed,
                 spec.trial_args(arm, params.resolve() if params else None,
                                 own.resolve() if own else None), seeds=[seed],
-                measure=measure, arm=arm.name)
+                measure=measure, arm=arm.name, program=spec.program)
             pending += jobs
             kept += files
     return pending, kept
@@ -130,6 +130,7 @@ class _Progress:
 def run(spec: Spec, backend: runner.Backend, say: Say, retry_crashed: bool = False,
         timeout_s: float = 0.0) -> Optional[dict]:
     """Run the spec's pending trials; return the log entry (None if there was nothing to run)."""
+    getattr(plugin_of(spec), 'check', lambda spec: None)(spec)  # SpecError: why it cannot run
     Path(spec.out).mkdir(parents=True, exist_ok=True)
     jobs, kept = plan(spec, retry_crashed, write_params(spec))
     if kept:

@@ -25,10 +25,14 @@ from attention_bringup.experiment.trials import (
 from attention_bringup.plan import positive_int
 from attention_common.isolation import isolated_environ
 from attention_common.node_main import unblock_stop_signals
-from attention_common.run_files import LAUNCHER_LOG
+from attention_common.run_files import LAUNCHER_LOG, REPLAY_LOG
 
 EXIT_INTERRUPTED = 130
 """A study command's exit code after Ctrl-C (finished trials are kept)."""
+TRAIN, REPLAY = 'attention_train', 'attention_replay'
+"""What a trial runs: a training run of the graph, or a recorded session replayed into a fresh
+learner (``launcher_args`` then start with the bag)."""
+PROGRAM_LOGS = {TRAIN: LAUNCHER_LOG, REPLAY: REPLAY_LOG}
 STOP_GRACE_S = 90.0
 """After its SIGINT, how long a launcher may take to stop its nodes before SIGTERM."""
 
@@ -49,6 +53,8 @@ class TrialJob:
     (a module-level function: on Ray it runs on the worker, beside the run folder)."""
     arm: str = ''
     """The experiment's arm (its condition when an arm is a condition)."""
+    program: str = TRAIN
+    """``TRAIN`` or ``REPLAY`` (both stop their nodes on one SIGINT)."""
 
 
 def auto_timeout_s(steps: int) -> float:
@@ -59,8 +65,8 @@ def auto_timeout_s(steps: int) -> float:
 def plan_trials(conditions: Sequence[str], trials: int, steps: int, out_dir: Path,
                 runs_dir: Path, retry_crashed: bool = False,
                 launcher_args: Sequence[str] = (), seeds: Optional[Sequence[int]] = None,
-                measure: Optional[Callable[[dict, Path], dict]] = None, arm: str = ''
-                ) -> Tuple[List[TrialJob], List[Path]]:
+                measure: Optional[Callable[[dict, Path], dict]] = None, arm: str = '',
+                program: str = TRAIN) -> Tuple[List[TrialJob], List[Path]]:
     """
     Return (trials to run, result files that exist and are kept).
 
@@ -73,7 +79,7 @@ def plan_trials(conditions: Sequence[str], trials: int, steps: int, out_dir: Pat
             path = trial_path(out_dir, condition, seed)
             run_dir = Path(runs_dir) / condition / f'seed{seed}'
             job = TrialJob(condition, seed, steps, path, run_dir, tuple(launcher_args), measure,
-                           arm or condition)
+                           arm or condition, program)
             if not path.exists():
                 pending.append(job)
                 continue
@@ -114,9 +120,12 @@ def load_retired(out_dir: Path, conditions: Sequence[str]) -> List[dict]:
 
 
 def launcher_command(launcher: Path, job: TrialJob) -> List[str]:
-    return [str(launcher), '--steps', str(job.steps), '--condition', job.condition,
-            '--seed', str(job.seed), '--run-dir', str(job.run_dir), '--quiet',
-            *job.launcher_args]
+    """Return the trial's command: ``launcher`` (``attention_train``) or the replay beside it."""
+    own = ['--condition', job.condition, '--seed', str(job.seed), '--run-dir', str(job.run_dir),
+           '--quiet']
+    if job.program == REPLAY:  # it replays the whole bag: no budget to give
+        return [str(Path(launcher).parent / REPLAY), *job.launcher_args, *own]
+    return [str(launcher), '--steps', str(job.steps), *own, *job.launcher_args]
 
 
 def _signal(process: subprocess.Popen, sig: signal.Signals) -> None:
@@ -137,7 +146,8 @@ def run_trial(job: TrialJob, launcher: Path, stop: threading.Event, timeout_s: f
     # The launcher reserves its own ROS domain; localhost discovery for anything it inherits.
     environ = isolated_environ(0)
     environ.pop('ROS_DOMAIN_ID')
-    with open(job.run_dir / LAUNCHER_LOG, 'wb') as log:
+    log_name = PROGRAM_LOGS[job.program]
+    with open(job.run_dir / log_name, 'wb') as log:
         process = subprocess.Popen(launcher_command(launcher, job), stdin=subprocess.DEVNULL,
                                    stdout=log, stderr=subprocess.STDOUT, env=environ,
                                    start_new_session=True)
@@ -157,7 +167,7 @@ def run_trial(job: TrialJob, launcher: Path, stop: threading.Event, timeout_s: f
         return None
     record = build_record(job.condition, job.seed, job.steps, job.run_dir, process.returncode,
                           time.monotonic() - started, timed_out=timed_out,
-                          started_at=started_at, parallel=parallel)
+                          started_at=started_at, parallel=parallel, launcher_log=log_name)
     if job.measure is not None:
         record = job.measure(record, job.run_dir)
     if write:

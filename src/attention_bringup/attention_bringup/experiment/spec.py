@@ -19,6 +19,9 @@ file stem (``attention_experiment teaching``). Its fields:
 - ``comparisons``: each ``{arm, baseline}``; ``measures``: what they compare;
   ``targets``: ``{arm: {...}}`` (read by the plug-in); ``settings``: anything else the plug-in
   reads;
+- ``program``: what a trial runs, ``attention_train`` (default) or ``attention_replay`` (a
+  recorded session replayed into each arm's fresh learner: ``launcher_args`` start with the bag,
+  ``budget`` is the number of steps it holds);
 - ``extends``: another spec (a shipped name, or a file beside this one) whose fields this one
   starts from (``load``).
 """
@@ -27,6 +30,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, List, Mapping, Optional, Sequence, Tuple
 
+from attention_bringup.experiment.runner import REPLAY, TRAIN
 from attention_bringup.graph import CONDITIONS
 import yaml
 
@@ -82,6 +86,7 @@ class Spec:
     measures: Tuple[str, ...] = ()
     targets: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
     settings: Mapping[str, Any] = field(default_factory=dict)
+    program: str = TRAIN
     source: str = ''
     """Where the spec was read from (for messages)."""
 
@@ -164,7 +169,7 @@ def _parameters(value, where: str) -> Mapping[str, Mapping[str, Any]]:
 
 REQUIRED = ('name', 'plugin', 'arms', 'seeds', 'budget', 'out', 'report', 'runs_dir')
 OPTIONAL = ('task', 'parallel', 'layout', 'log', 'launcher_args', 'parameters', 'params_file',
-            'comparisons', 'measures', 'targets', 'settings')
+            'comparisons', 'measures', 'targets', 'settings', 'program')
 
 
 def from_dict(data: Mapping, source: str = '') -> Spec:
@@ -204,6 +209,9 @@ def from_dict(data: Mapping, source: str = '') -> Spec:
     parallel = data.get('parallel', 1)
     if not isinstance(parallel, int) or parallel < 1:
         raise SpecError(f'{where}: parallel must be a positive integer')
+    program = data.get('program', TRAIN)
+    if program not in (TRAIN, REPLAY):
+        raise SpecError(f'{where}: program must be {TRAIN} or {REPLAY}')
     return Spec(
         name=str(data['name']), plugin=str(data['plugin']), arms=arms,
         seeds=_seeds(data['seeds'], where), budget=budget, out=str(data['out']),
@@ -216,7 +224,7 @@ def from_dict(data: Mapping, source: str = '') -> Spec:
         comparisons=tuple(comparisons),
         measures=_strings(data.get('measures'), where, 'measures'),
         targets=dict(data.get('targets') or {}), settings=dict(data.get('settings') or {}),
-        source=source)
+        program=program, source=source)
 
 
 def spec_path(name_or_path: str) -> Path:

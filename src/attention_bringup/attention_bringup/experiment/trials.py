@@ -198,12 +198,15 @@ def outcome_of(summary: Optional[Mapping], steps: int, budget: int, exit_code: O
 
 def build_record(condition: str, seed: int, budget: int, run_dir: Path,
                  exit_code: Optional[int], wall_time_s: float, timed_out: bool = False,
-                 started_at: str = '', parallel: int = 1) -> dict:
+                 started_at: str = '', parallel: int = 1,
+                 launcher_log: str = LAUNCHER_LOG) -> dict:
     """Summarize one finished (or failed) trial's run folder as a result-file dict."""
     run_dir = Path(run_dir)
     summary = read_json(run_dir / SUMMARY_FILE)
     rows = read_progress(run_dir / PROGRESS_FILE)
     steps = rows[-1]['agent_step'] if rows else 0
+    if summary is not None and summary.get('kind') == 'replay':  # (no progress.csv)
+        steps = summary.get('steps', 0)
     outcome = outcome_of(summary, steps, budget, exit_code, timed_out)
     first = first_visits(rows)
     visited = [position for position, step in first.items() if step is not None]
@@ -252,7 +255,7 @@ def build_record(condition: str, seed: int, budget: int, run_dir: Path,
         record['problem'] = {
             'exit_text': summary.get('exit_text'),
             'failed_node': failed,
-            'launcher_output_tail': read_tail(run_dir / LAUNCHER_LOG),
+            'launcher_output_tail': read_tail(run_dir / launcher_log),
             'node_log_tail': read_tail(run_dir / node_log(failed)) if failed else '',
         }
     return record

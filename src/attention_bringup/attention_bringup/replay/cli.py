@@ -8,8 +8,11 @@ observation with its own greedy action, which is compared with the session's. Th
 holds the learner's files (feedback log, metrics, checkpoints), ``replay_steps.csv``,
 ``learning_curve.png`` and ``summary.json``.
 
-``--all-conditions`` replays the same session once per study condition (``OUT/<condition>/``,
-resumable) and prints a table: the learner changes, the person's teaching does not.
+``--all-conditions`` replays the same session once per study condition and prints a table: the
+learner changes, the person's teaching does not. It is the ``replay`` experiment spec run by the
+experiment engine with this bag, seed and ``--out`` (resumable: ``OUT/trials/`` holds each
+finished replay's result file, ``OUT/<condition>/seed<k>/`` its run folder); ``--conditions``
+names fewer (or other) conditions, ``--parallel`` runs several replays side by side.
 
 Exit code: 0 when every item was sent and both nodes exited cleanly; 1 when a node died or did
 not start; 2 for bad options, bags or files; 130 on Ctrl-C.
@@ -22,7 +25,6 @@ import datetime
 import json
 import os
 from pathlib import Path
-import shutil
 import signal
 import sys
 import threading
@@ -31,6 +33,10 @@ from typing import Optional
 
 from attention_bringup import report
 from attention_bringup.driver import Driver
+from attention_bringup.experiment import engine, runner, spec as specs
+from attention_bringup.experiment.plugins.replay import bag_steps
+from attention_bringup.experiment.runner import Backend
+from attention_bringup.experiment.spec import Arm
 from attention_bringup.graph import THESIS_CONDITIONS
 from attention_bringup.params import ParamsFileError
 from attention_bringup.plan import chosen_domain
@@ -44,7 +50,7 @@ from attention_bringup.replay.session import Agreement, RECEIPTED, replay_items
 from attention_common import topics
 from attention_common.isolation import reserved_domain
 from attention_common.node_main import unblock_stop_signals
-from attention_common.run_files import LEARNING_CURVE_FILE, LOGS_DIR, SUMMARY_FILE
+from attention_common.run_files import LEARNING_CURVE_FILE, LOGS_DIR, REPLAY_LOG, SUMMARY_FILE
 from attention_tasks.task import load_task
 from session_bag.reader import BagReader
 
@@ -78,7 +84,8 @@ class Replay:
 
     def run(self) -> int:
         run_dir = self.plan.run_dir
-        if run_dir.exists() and any(run_dir.iterdir()):
+        # (an experiment's runner writes this replay's output in REPLAY_LOG before it starts)
+        if run_dir.exists() and any(p.name != REPLAY_LOG for p in run_dir.iterdir()):
             raise FileExistsError(f'{run_dir} is not empty; choose another --run-dir')
         (run_dir / LOGS_DIR).mkdir(parents=True)
         (run_dir / PARAMS_FILE).write_text(self.plan.params_text())
@@ -244,36 +251,34 @@ class Replay:
         return EXIT_INTERRUPTED if status == 'interrupted' else 1
 
 
-def _status_of(run_dir: Path) -> Optional[str]:
-    try:
-        return json.loads((run_dir / SUMMARY_FILE).read_text()).get('status')
-    except (OSError, ValueError):
-        return None
-
-
-def replay_study(options, domain_id: int) -> int:
-    """Replay one session once per condition into ``out/<condition>``; print the table."""
+def replay_study(options, plan: ReplayPlan) -> int:
+    """``--all-conditions``: the ``replay`` spec on the engine, with this bag, seed and folder."""
     out = Path(options.out or Path('runs') / f'{datetime.datetime.now():%Y%m%d-%H%M%S}'
                '-replay-study').resolve()
-    rows, code = [], 0
-    for condition in THESIS_CONDITIONS:
-        run_dir = out / condition
-        if _status_of(run_dir) != 'completed':  # resumable: a completed one is kept
-            plan = build_plan(dataclasses.replace(options, condition=condition,
-                                                  run_dir=str(run_dir)),
-                              Path(sys.executable).parent, Path.cwd())
-            if run_dir.exists():  # an interrupted or failed one starts again
-                shutil.rmtree(run_dir)
-            result = Replay(plan, domain_id).run()
-            if result == EXIT_INTERRUPTED:
-                sys.stderr.write(f'attention_replay: interrupted; run it again with --out {out} '
-                                 'to go on\n')
-                return result
-            code = max(code, result)
-        rows.append(json.loads((run_dir / SUMMARY_FILE).read_text()))
+    bag_args = [str(plan.bag_dir)] + (['--fast'] if options.fast else []) + [
+        word for path in options.params_files
+        for word in ('--params-file', str(Path(path).resolve()))]
+    if options.task:
+        bag_args += ['--task', options.task]
+    if options.domain is not None:
+        bag_args += ['--domain', str(options.domain)]
+    spec = dataclasses.replace(
+        specs.load('replay'), source='attention_replay --all-conditions',
+        arms=tuple(Arm(c, c) for c in options.conditions or THESIS_CONDITIONS),
+        seeds=(plan.seed,), budget=bag_steps(plan.bag_dir), out=str(out),
+        report=str(out / 'replay_study.md'), runs_dir=str(out), launcher_args=tuple(bag_args))
+    code, result = engine.main_flow(spec, Backend(parallel=options.parallel),
+                                    engine.sayer('attention_replay'))
+    if code == runner.EXIT_INTERRUPTED:
+        sys.stderr.write(f'attention_replay: interrupted; run it again with --out {out} to go '
+                         'on\n')
+    if code != 0:
+        return code
+    rows = result['summaries']
     report.write_json(out / 'replay_study.json', rows)
     sys.stdout.write(study_table(rows) + f'\nReplay study: {out}\n')
-    return code
+    completed = [row for row in rows if row.get('status') == 'completed']
+    return 0 if len(completed) == len(spec.arms) else 1
 
 
 def main(argv: Optional[list] = None) -> int:
@@ -289,11 +294,15 @@ def main(argv: Optional[list] = None) -> int:
         sys.stderr.write(f'attention_replay: node executables not found: {", ".join(missing)} '
                          '(run make setup)\n')
         return 2
+    if options.all_conditions or options.conditions:
+        if options.parallel > 1 and options.domain is not None:
+            sys.stderr.write('attention_replay: --domain runs one replay at a time; drop it or '
+                             '--parallel\n')
+            return 2
+        return replay_study(options, plan)  # (each replay reserves its own domain)
     domain = reserved_domain() if chosen is None else contextlib.nullcontext(chosen)
     with domain as domain_id:
         try:
-            if options.all_conditions:
-                return replay_study(options, domain_id)
             return Replay(plan, domain_id).run()
         except FileExistsError as error:
             sys.stderr.write(f'attention_replay: {error}\n')

@@ -17,7 +17,7 @@ from typing import List, Optional, Sequence
 from attention_bringup.graph import base_params_files, CONDITIONS
 from attention_bringup.params import (
     dump_params, GraphParams, load_params_file, merge_params, node_params, parse_params)
-from attention_bringup.plan import BAG_DIR, domain_id, NodeCommand
+from attention_bringup.plan import BAG_DIR, domain_id, NodeCommand, positive_int
 from attention_common.run_files import node_log
 from attention_tasks.task import DEFAULT_TASK, task_names
 from session_bag import metadata
@@ -51,6 +51,10 @@ class ReplayOptions:
     """Replay once per study condition, each into ``out/<condition>``."""
     out: Optional[str] = None
     """With ``all_conditions``: the study's folder (default runs/<timestamp>-replay-study)."""
+    conditions: Optional[List[str]] = None
+    """A replay study of these conditions only (``all_conditions``: every thesis condition)."""
+    parallel: int = 1
+    """Replays of the study side by side."""
 
 
 def argument_parser() -> argparse.ArgumentParser:
@@ -80,7 +84,13 @@ def argument_parser() -> argparse.ArgumentParser:
     parser.add_argument('--all-conditions', dest='all_conditions', action='store_true',
                         help='replay the same session once per study condition (the learner '
                              "changes, the person's teaching does not), each into "
-                             'OUT/<condition>/; a condition already done there is kept')
+                             'OUT/<condition>/seed<k>/; a replay already done there is kept')
+    parser.add_argument('--conditions', nargs='+', choices=CONDITIONS, default=None,
+                        metavar='CONDITION',
+                        help='a replay study of these conditions (as --all-conditions, fewer '
+                             'or others)')
+    parser.add_argument('--parallel', type=positive_int, default=1,
+                        help='with --all-conditions: replays side by side (default 1)')
     parser.add_argument('--out', default=None,
                         help='with --all-conditions: the folder (default '
                              'runs/<timestamp>-replay-study)')

@@ -50,8 +50,12 @@ class Item(NamedTuple):
     """An observation's: the session learner's ``action`` message answering it."""
 
 
-def executed_action(data: bytes) -> Optional[Tuple[int, int]]:
-    """Return (stamp, task action applied to reach that step) of an env_status, or None."""
+def executed_action(data: bytes) -> Optional[Tuple[int, Optional[int]]]:
+    """
+    Return (stamp, task action applied to reach that step) of an env_status, or None.
+
+    The action is None at a reset or the start (no agent action led to that step).
+    """
     message = deserialize_message(data, DiagnosticArray)
     for status in message.status:
         if status.name == ENV_STATUS_NAME:
@@ -60,10 +64,28 @@ def executed_action(data: bytes) -> Optional[Tuple[int, int]]:
                 action = int(value)
             except (TypeError, ValueError):
                 return None
-            if action == NO_ACTION:  # a reset, the start: no agent action led here
-                return None
-            return stamp_to_ns(message.header.stamp), action
+            return stamp_to_ns(message.header.stamp), None if action == NO_ACTION else action
     return None
+
+
+def _with_early(item: Item, early_status: Dict[int, Optional[int]],
+                early_answer: Dict[int, bytes]) -> Tuple[Item, bool]:
+    """
+    Attach to a step what was logged before it; return (item, whether its action is known).
+
+    The step's executed action is the first env_status after it (the next step's); what is
+    older than the step can no longer be anyone's, and is dropped.
+    """
+    later = [s for s in early_status if s > item.stamp]
+    closed = bool(later)
+    if closed:
+        item = item._replace(executed=early_status.pop(min(later)))
+    item = item._replace(answered=early_answer.pop(item.stamp, None))
+    for stale in [s for s in early_status if s <= item.stamp]:
+        del early_status[stale]
+    for stale in [s for s in early_answer if s < item.stamp]:
+        del early_answer[stale]
+    return item, closed
 
 
 def replay_items(messages: Iterable) -> Iterator[Item]:
@@ -74,11 +96,17 @@ def replay_items(messages: Iterable) -> Iterator[Item]:
     executed on it (or ``LOOKAHEAD_OBSERVATIONS`` more observations came: the last step of an
     episode has none); what follows it waits behind it, so the order is kept. Its ``action``
     answer is attached on the way.
+
+    A loaded recorder may log a step's observation after its answer and the next step's
+    env_status (each topic keeps its own order, not the others'): those are kept until their
+    observation comes.
     """
     pending: collections.deque = collections.deque()  # [Item] lists, oldest first
     open_steps: Dict[int, list] = {}  # stamp -> pending observation without its executed action
     by_stamp: Dict[int, list] = {}  # stamp -> pending observation (the first copy of a step)
     observations = 0  # in pending
+    early_status: Dict[int, Optional[int]] = {}  # status stamp -> action, before its step came
+    early_answer: Dict[int, bytes] = {}  # stamp -> answer heard before its observation
 
     def release(final: bool = False) -> Iterator[Item]:
         nonlocal observations
@@ -103,18 +131,28 @@ def replay_items(messages: Iterable) -> Iterator[Item]:
             if earlier:  # the step this one was reached from: the newest before it
                 holder = open_steps.pop(max(earlier))
                 holder[0] = holder[0]._replace(executed=found[1])
+            elif found:
+                early_status[found[0]] = found[1]
         elif topic == topics.ACTION:
-            holder = by_stamp.get(header_stamp_ns(message.data))
-            if holder is not None and holder[0].answered is None:
+            stamp = header_stamp_ns(message.data)
+            holder = by_stamp.get(stamp)
+            if holder is None:
+                early_answer.setdefault(stamp, message.data)
+            elif holder[0].answered is None:
                 holder[0] = holder[0]._replace(answered=message.data)
         elif topic in REPLAYED:
             stamp = header_stamp_ns(message.data) if topic == topics.OBSERVATION else None
-            holder = [Item(topic, message.log_time, message.data, stamp)]
+            item = Item(topic, message.log_time, message.data, stamp)
+            if stamp is not None and stamp not in by_stamp:
+                item, closed = _with_early(item, early_status, early_answer)
+            holder = [item]
             pending.append(holder)
             if stamp is not None:
                 observations += 1
                 if stamp not in by_stamp:  # a re-sent step: its first copy is the step
-                    by_stamp[stamp] = open_steps[stamp] = holder
+                    by_stamp[stamp] = holder
+                    if not closed:
+                        open_steps[stamp] = holder
         yield from release()
     yield from release(final=True)
 
