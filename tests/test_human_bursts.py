@@ -6,6 +6,7 @@ Bursts on the human topics: every message of a burst reaches the node (the READM
 a burst of 10,000 feedback gave the learner 466).
 """
 
+import re
 import signal
 
 from attention_common import qos, topics
@@ -56,6 +57,14 @@ def test_bursts_of_feedback_and_utterances_all_reach_the_learner(probe, start_no
     assert tamer.stop(signal.SIGINT) == 0
     lines = (run / 'feedback_log.jsonl').read_text().splitlines()
     assert len(lines) == 3 * BURST  # on disk, every one
+    # No stamped one had a step to learn on; each is in the log above, and the node's log says
+    # so for each, one line each up to its budget and the rest folded into counted lines (10,000
+    # lines of their own held its exit for 4 s here, and over 15 s on a busy machine).
+    log = tamer.log_text()
+    whole = log.count('matches no step the agent acted on')
+    folded = sum(int(n) for n in re.findall(r'(\d+) more warning\(s\) like those above', log))
+    assert whole + folded - len(re.findall('more warning', log)) == BURST
+    assert whole < BURST // 10
 
 
 def test_bursts_of_utterances_all_reach_the_saliency_node(probe, start_node):

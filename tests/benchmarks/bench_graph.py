@@ -260,9 +260,11 @@ def _free_port() -> int:
 
 
 def foxglove_cost(pairs: int, steps: int, workdir: Path, pace_updates: float,
-                  channels: str, legacy: bool, relay: bool) -> int:
+                  channels: str, legacy: bool, relay: bool, image_rate_hz: float = 0.0) -> int:
     """Run the graph alone and watched in Foxglove, alternating; print both and the cost."""
     viewer = '' if relay else '    legacy_subprotocol: false\n'
+    if image_rate_hz:
+        viewer += f'    max_image_rate_hz: {image_rate_hz}\n'
     alone, watched, received = [], [], []
     cpu = {'graph alone': [], 'graph watched': [], 'graph_viewer': [], 'the client': []}
     for pair in range(pairs):
@@ -330,6 +332,8 @@ def main() -> int:
     parser.add_argument('--foxglove-no-relay', action='store_true',
                         help="graph_viewer's legacy_subprotocol false: the SDK serves the port "
                              'itself (clients of foxglove.sdk.v1 only)')
+    parser.add_argument('--foxglove-image-rate', type=float, default=0.0, metavar='HZ',
+                        help="graph_viewer's max_image_rate_hz (default: the node's)")
     args = parser.parse_args()
     with tempfile.TemporaryDirectory(prefix='bench_graph_') as tmp:
         workdir = Path(tmp)
@@ -337,7 +341,7 @@ def main() -> int:
             print(f'Machine: {machine()}; executor {executor_name()}')
             return foxglove_cost(args.foxglove, args.graph_steps, workdir, args.pace_updates,
                                  args.foxglove_channels, args.foxglove_legacy,
-                                 not args.foxglove_no_relay)
+                                 not args.foxglove_no_relay, args.foxglove_image_rate)
         load_before = os.getloadavg()[0]
         local = in_process_run(args.inprocess_steps, workdir, args.pace_updates)
         graph = graph_run(args.graph_steps, workdir, args.pace_updates)

@@ -26,6 +26,7 @@ import threading
 import time
 from typing import Callable, List, Optional
 
+from attention_common.log_budget import LogBudget
 import numpy as np
 from tamer_node.acting import SnapshotSlot
 from tamer_node.buffer import collate, FeedbackBuffer, Sample
@@ -59,6 +60,7 @@ class LearnerWorker(threading.Thread):
         self.checkpoints = Checkpoints(config, learner, buffer, history, journal, disk,
                                        run_dir, log, self.delays)
         self._log = log
+        self._warnings = LogBudget(log)  # a burst's thousands of unmatched feedback: folded
         self._rng = np.random.default_rng(config.seed)
         self._inbox: 'collections.deque[FeedbackEvent]' = collections.deque()
         self._pending: 'collections.deque[FeedbackEvent]' = collections.deque()
@@ -185,6 +187,7 @@ class LearnerWorker(threading.Thread):
             now = time.monotonic()
             try:
                 self._resolve(force=False)
+                self._warnings.flush_due()
                 clock = self._clock()
                 if clock is not None and len(self.buffer):
                     schedule.start(clock)  # if not started yet (a resumed buffer)
@@ -216,6 +219,7 @@ class LearnerWorker(threading.Thread):
                 deadlines.append(self._pending[0].arrived + self.config.saliency_timeout_s)
             self._wake.wait(max(0.0, min(deadlines) - time.monotonic()))
         self._resolve(force=True)  # nothing left half-done at exit
+        self._warnings.flush()
         self.checkpoint()
 
     def stop(self, timeout: float = 30.0) -> None:
@@ -266,7 +270,7 @@ class LearnerWorker(threading.Thread):
         paired = pair(event, history, self.config, self.learner.model, self._wants_companion(),
                       self.delays)
         if paired.warning is not None:
-            self._log('warn', paired.warning)
+            self._warnings.warn(paired.warning)
         if paired.delays:  # the M-step: where the verdict went
             total = sum(s.weight for s in paired.samples)
             if total > 0.0:
