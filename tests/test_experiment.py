@@ -236,10 +236,8 @@ def test_a_replay_trials_steps_are_the_replays_own(tmp_path):
     trials.write_json(run_dir / 'summary.json', {'kind': 'replay', 'status': 'completed',
                                                  'steps': 120})
     (run_dir / 'attention_replay.log').write_text('a node said why it stopped\n')
-    record = trials.build_record('language', 3, 120, run_dir, 0, 5.0,
-                                 launcher_log='attention_replay.log')
+    record = trials.build_record('language', 3, 120, run_dir, 0, 5.0)
     assert (record['steps'], record['outcome']) == (120, trials.COMPLETED)
-    short = trials.build_record('language', 3, 121, run_dir, 0, 5.0,
-                                launcher_log='attention_replay.log')
+    short = trials.build_record('language', 3, 121, run_dir, 0, 5.0)
     assert short['outcome'] == trials.CRASHED
     assert 'said why' in short['problem']['launcher_output_tail']

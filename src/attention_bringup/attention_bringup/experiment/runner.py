@@ -146,8 +146,7 @@ def run_trial(job: TrialJob, launcher: Path, stop: threading.Event, timeout_s: f
     # The launcher reserves its own ROS domain; localhost discovery for anything it inherits.
     environ = isolated_environ(0)
     environ.pop('ROS_DOMAIN_ID')
-    log_name = PROGRAM_LOGS[job.program]
-    with open(job.run_dir / log_name, 'wb') as log:
+    with open(job.run_dir / PROGRAM_LOGS[job.program], 'wb') as log:
         process = subprocess.Popen(launcher_command(launcher, job), stdin=subprocess.DEVNULL,
                                    stdout=log, stderr=subprocess.STDOUT, env=environ,
                                    start_new_session=True)
@@ -167,7 +166,7 @@ def run_trial(job: TrialJob, launcher: Path, stop: threading.Event, timeout_s: f
         return None
     record = build_record(job.condition, job.seed, job.steps, job.run_dir, process.returncode,
                           time.monotonic() - started, timed_out=timed_out,
-                          started_at=started_at, parallel=parallel, launcher_log=log_name)
+                          started_at=started_at, parallel=parallel)
     if job.measure is not None:
         record = job.measure(record, job.run_dir)
     if write:

@@ -21,7 +21,7 @@ from typing import Dict, List, Mapping, Optional, Sequence, Tuple
 
 from attention_bringup.params import load_params_file, node_params, ParamsFileError
 from attention_common.run_files import (
-    LAUNCHER_LOG, node_log, PARAMS_FILE, PROGRESS_FILE, SUMMARY_FILE)
+    LAUNCHER_LOG, node_log, PARAMS_FILE, PROGRESS_FILE, REPLAY_LOG, SUMMARY_FILE)
 
 FORMAT = 1
 """Version of the result file layout."""
@@ -198,10 +198,10 @@ def outcome_of(summary: Optional[Mapping], steps: int, budget: int, exit_code: O
 
 def build_record(condition: str, seed: int, budget: int, run_dir: Path,
                  exit_code: Optional[int], wall_time_s: float, timed_out: bool = False,
-                 started_at: str = '', parallel: int = 1,
-                 launcher_log: str = LAUNCHER_LOG) -> dict:
+                 started_at: str = '', parallel: int = 1) -> dict:
     """Summarize one finished (or failed) trial's run folder as a result-file dict."""
     run_dir = Path(run_dir)
+    launcher_log = REPLAY_LOG if (run_dir / REPLAY_LOG).exists() else LAUNCHER_LOG
     summary = read_json(run_dir / SUMMARY_FILE)
     rows = read_progress(run_dir / PROGRESS_FILE)
     steps = rows[-1]['agent_step'] if rows else 0
