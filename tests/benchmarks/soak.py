@@ -9,9 +9,17 @@ end, the growth per 10,000 steps fitted over the second half of the run (after w
 learner's buffer fills for its first 10,000 samples).
 
     .venv/bin/python tests/benchmarks/soak.py [--steps 100000] [--every 10000]
+    .venv/bin/python tests/benchmarks/soak.py --steps 1000000 --every 100000 \
+        --run-dir runs/soak --out docs/robustness/soak_1m.csv   # an hour; run again to resume
+
+With ``--out`` every reading is also a row of that CSV as it is taken, with the session it was
+taken in; run the same command again after an interruption and the run resumes
+(``attention_train --resume``: fresh processes, the learner from its checkpoint) and the rows
+go on. Growth is fitted per session (a resumed process starts small again).
 """
 
 import argparse
+import csv
 import json
 import os
 from pathlib import Path
@@ -47,18 +55,50 @@ def last_step(progress: Path) -> int:
     return 0
 
 
+FIELDS = ['session', 'steps', 'wall_s'] + [f'{name}_mb' for name in PROCESSES]
+
+
+def read_rows(path):
+    if not path or not Path(path).exists():
+        return []
+    with open(path, newline='') as file:
+        return list(csv.DictReader(file))
+
+
+def append_row(path, row) -> None:
+    new = not Path(path).exists()
+    with open(path, 'a', newline='') as file:
+        writer = csv.writer(file)
+        if new:
+            writer.writerow(FIELDS)
+        writer.writerow(row)
+        file.flush()
+        os.fsync(file.fileno())
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     parser.add_argument('--steps', type=int, default=100_000)
     parser.add_argument('--every', type=int, default=10_000)
     parser.add_argument('--run-dir', default=None, help='default: a new temporary folder')
+    parser.add_argument('--out', default=None, help='a CSV of the readings, appended to')
     args = parser.parse_args()
     run_dir = Path(args.run_dir or tempfile.mkdtemp(prefix='soak-')) / 'run'
-    launcher = subprocess.Popen(
-        [str(Path(sys.executable).parent / 'attention_train'), '--steps', str(args.steps),
-         '--run-dir', str(run_dir), '--quiet', '--seed', '11'],
-        stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-    print(f'run folder {run_dir}')
+    previous = read_rows(args.out)
+    session = 1 + max((int(row['session']) for row in previous), default=0)
+    done = (run_dir / 'summary.json').exists() and json.loads(
+        (run_dir / 'summary.json').read_text()).get('status') == 'completed'
+    if done:
+        print(f'{run_dir} has run its budget already (its readings: {args.out})')
+        return 0
+    launcher_bin = str(Path(sys.executable).parent / 'attention_train')
+    command = ([launcher_bin, '--resume', str(run_dir), '--quiet']
+               if (run_dir / 'summary.json').exists() or (run_dir / 'progress.csv').exists()
+               else [launcher_bin, '--steps', str(args.steps), '--run-dir', str(run_dir),
+                     '--quiet', '--seed', '11'])
+    launcher = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                                text=True)
+    print(f'run folder {run_dir}, session {session}')
     print('steps    wall_s  ' + '  '.join(f'{name:>15}' for name in PROCESSES) + '   (MB)')
     readings, started, next_at = [], time.monotonic(), 0
     while launcher.poll() is None:
@@ -72,6 +112,9 @@ def main() -> int:
             continue
         memory = [resident_mb(pids.get(name, -1)) for name in PROCESSES]
         readings.append((steps, memory))
+        if args.out:
+            append_row(args.out, [session, steps, round(time.monotonic() - started)] + [
+                '' if m is None else round(m, 1) for m in memory])
         print(f'{steps:>7} {time.monotonic() - started:>7.0f}  '
               + '  '.join(f'{m:>15.1f}' if m is not None else f'{"-":>15}' for m in memory),
               flush=True)
