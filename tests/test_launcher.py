@@ -13,6 +13,7 @@ import signal
 import socket
 import subprocess
 import sys
+import time
 
 from harness import wait_until
 import pytest
@@ -342,9 +343,50 @@ def test_fetch_runs_on_every_node_by_name_and_says_each_mission(tmp_path):
     assert summary['episodes'] >= steps // 50
     assert len(said) >= summary['episodes'] and all(
         text.startswith('pick up the ') for text in said)
-    assert summary['learner_log']['feedback'] >= 0.8 * steps  # the teacher judged the steps
+    # The teacher judged the steps (all but an episode's last), and the learner logged every
+    # judgement it gave before the nodes were stopped.
+    teacher = summary['trainer_counts']
+    assert teacher['judged'] >= 0.8 * steps and teacher['unjudged_gaps'] == 0, teacher
+    assert summary['learner_log']['feedback'] == teacher['given_feedback'] == teacher['judged']
     metrics = summary['metrics']
     assert metrics['pairing/with_saliency'] > 0  # the words grounded in the room's objects
+
+
+@pytest.mark.topics
+def test_a_teacher_far_behind_at_the_end_still_gets_every_judgement_to_the_learner(tmp_path):
+    """
+    A busy core: the teacher is stopped for seconds while lockstep plays on without it.
+
+    When it runs again it is a couple of hundred steps behind and the run is over; the env's
+    statuses wait for it, and the launcher waits until it judged the last step and the learner
+    logged every judgement. Before, it lost every status beyond 50 (each loss leaves two actions
+    unjudged) and the nodes were stopped 3 s after the last step, whatever was still coming.
+    """
+    run_dir, steps = tmp_path / 'run', 300
+    launcher = subprocess.Popen(
+        [LAUNCHER, '--task', 'fetch', '--steps', str(steps), '--seed', '5', '--run-dir',
+         str(run_dir), '--quiet'], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    teacher = None
+    try:
+        assert wait_until(lambda: _progress_rows(run_dir) >= 20 or launcher.poll() is not None,
+                          120), 'no steps'
+        teacher = _read_json(run_dir / 'pids.json')['feedback_node']
+        os.kill(teacher, signal.SIGSTOP)
+        assert wait_until(lambda: _progress_rows(run_dir) >= steps or launcher.poll() is not None,
+                          120), 'the env did not play on without the teacher'
+        time.sleep(1.0)
+    finally:
+        if teacher is not None:
+            os.kill(teacher, signal.SIGCONT)
+    out, err = launcher.communicate(timeout=240)
+    assert launcher.returncode == 0, err[-4000:]
+    summary = _read_json(run_dir / 'summary.json')
+    teacher_counts = summary['trainer_counts']
+    assert teacher_counts['steps'] >= steps and teacher_counts['unjudged_gaps'] == 0, (
+        teacher_counts)
+    assert teacher_counts['judged'] >= 0.8 * steps
+    assert summary['learner_log']['feedback'] == teacher_counts['given_feedback'] == (
+        teacher_counts['judged'])
 
 
 def _fetch_run(run_dir: Path, condition: str, steps: int) -> dict:

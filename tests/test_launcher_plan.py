@@ -201,7 +201,8 @@ def test_plan_without_options_changes_only_budget_run_dir_and_trainer(tmp_path):
     plan = _plan(tmp_path)
     # env_node waits for the graph's own listeners, as in the launch file: the launcher hears
     # env_status before the learners start, so it sees the first step without a wait of its own.
-    assert plan.overrides == {'env_node': {'max_steps': DEFAULT_STEPS},
+    assert plan.overrides == {'env_node': {'max_steps': DEFAULT_STEPS,
+                                           'wait_status_subscribers': 2},
                               'feedback_node': {'trainer': 'teacher',
                                                 'wait_feedback_subscribers': 2,
                                                 'wait_utterance_subscribers': 2},
@@ -242,6 +243,20 @@ def test_the_late_learner_is_one_option_away_with_late_feedback(tmp_path):
     defaults = TamerConfig()  # each one a real parameter, whose default is the thesis's
     assert all(getattr(defaults, name) != value for name, value in LATE_FEEDBACK_LEARNER.items())
     assert parse_options(['--human-like', '--late-learner']).late_learner
+
+
+@pytest.mark.parametrize('options, readers', [
+    ({}, 2), ({'synthetic': False}, 3), ({'console': True}, 3),
+    ({'synthetic': False, 'console': True}, 4), ({'realtime': True}, 2)])
+def test_the_env_waits_for_every_reader_of_env_status_when_the_teacher_judges(
+        tmp_path, options, readers):
+    # The monitor and the teacher, the recorder (a person's session) and the console: all
+    # of them read env_status, so with fewer the teacher could be the one not yet matched.
+    plan = _plan(tmp_path, **options)
+    assert plan.effective['env_node']['wait_status_subscribers'] == readers
+    # The thesis's trainer hears agent_position only: the env waits for its position reader.
+    thesis = _plan(tmp_path, trainer='thesis', **options).effective['env_node']
+    assert thesis.get('wait_status_subscribers', 0) == 0
 
 
 def test_seed_of_the_run_dir_comes_from_the_files(tmp_path):

@@ -23,7 +23,7 @@ import sys
 import time
 from typing import Optional
 
-from attention_bringup import report
+from attention_bringup import drain, report
 from attention_bringup.driver import Driver
 from attention_bringup.gallery import GalleryCollector
 from attention_bringup.graph import NODES
@@ -296,6 +296,8 @@ class Launcher:
 
     def _drain(self, monitor, quiet_s: float = 0.5, timeout_s: float = 3.0) -> None:
         """After the last step, let the last feedback and metrics reach the tamer and us."""
+        if self.plan.options.synthetic:
+            self._wait_for_trainer(monitor)
         end = time.monotonic() + timeout_s
         previous, since = None, time.monotonic()
         while time.monotonic() < end and not self.interrupts:
@@ -304,6 +306,21 @@ class Launcher:
             if current != previous:
                 previous, since = current, time.monotonic()
             elif time.monotonic() - since >= quiet_s:
+                return
+            time.sleep(0.05)
+
+    def _wait_for_trainer(self, monitor) -> None:
+        """Wait until the trainer judged the last step and the learner logged all it gave."""
+        end = time.monotonic() + drain.TRAINER_DRAIN_S
+        while not self.interrupts:
+            with monitor.lock:
+                missing = drain.behind(monitor.trainer_status, monitor.tracker.last_stamp_ns,
+                                       monitor.receipts)
+            if missing is None:
+                return
+            if time.monotonic() >= end:
+                self.err.write(f'attention_train: stopping the nodes although {missing} '
+                               f'after {drain.TRAINER_DRAIN_S:.0f} s\n')
                 return
             time.sleep(0.05)
 
@@ -432,6 +449,8 @@ class Launcher:
             counts = dict(monitor.counts)
             first_seen = {topic: round(t, 2) for topic, t in monitor.first_message_wall.items()}
             metrics = dict(monitor.metrics)
+            trainer = dict(monitor.trainer_status) if monitor.trainer_status else None
+            receipts = dict(monitor.receipts)
             first, last = tracker.first_row, (tracker.rows[-1] if tracker.rows else None)
         training_s = (last['wall_time_s'] - first['wall_time_s']
                       if tracker.row_count > 1 else 0.0)
@@ -468,6 +487,8 @@ class Launcher:
             else 0.0,
             'utterance_count': tracker.counters.utterances,
             'message_counts': counts,
+            'trainer_counts': trainer,
+            'receipts': receipts,
             'first_message_s': first_seen,
             'latency_ms': {'p50': ms(50), 'p99': ms(99), 'max': ms(100),
                            'n': int(tracker.latencies_ms.count)},

@@ -64,6 +64,10 @@ class GraphMonitor(Node):
             (t for t in COUNTED_TOPICS if watch_plain or t not in PLAIN_TOPICS), 0)
         self.first_message_wall: Dict[str, float] = {}
         self.metrics: Dict[str, object] = {}
+        self.trainer_status: Optional[Dict[str, object]] = None
+        """The newest ``trainer_status`` values of feedback_node (None: none heard)."""
+        self.receipts: Dict[str, int] = {'feedback': 0, 'utterance': 0}
+        """The learner's receipts on ``feedback_logged``, by kind."""
         self._started = time.monotonic()
         sub = self.create_subscription
         self._status_subscription = sub(
@@ -74,6 +78,8 @@ class GraphMonitor(Node):
             sub(Float32, topics.FEEDBACK, self._on_feedback, qos.WATCH_STEPS)
             sub(String, topics.UTTERANCE, self._on_utterance, qos.WATCH_STEPS)
         sub(DiagnosticArray, topics.METRICS, self._on_metrics, qos.METRICS)
+        sub(DiagnosticArray, topics.TRAINER_STATUS, self._on_trainer_status, qos.LATCHED)
+        sub(DiagnosticArray, topics.FEEDBACK_LOGGED, self._on_receipt, qos.HUMAN)
         self._images_wanted = threading.Event()
         self._watching_images = False
         self._gallery_subscriptions = ()
@@ -173,6 +179,16 @@ class GraphMonitor(Node):
         with self.lock:
             self._count(topics.METRICS)
             self.metrics.update(values)
+
+    def _on_trainer_status(self, msg: DiagnosticArray) -> None:
+        values = key_values(msg)
+        with self.lock:
+            self.trainer_status = values
+
+    def _on_receipt(self, msg: DiagnosticArray) -> None:
+        with self.lock:
+            for status in msg.status:
+                self.receipts[status.name] = self.receipts.get(status.name, 0) + 1
 
     def _image_callback(self, topic: str, kind: str):
         def callback(raw: bytes) -> None:

@@ -376,6 +376,8 @@ def launcher_overrides(options: LaunchOptions, seed: int, run_dir: Path,
         overrides['feedback_node']['wait_utterance_subscribers'] += 1
         for node in ('saliency_node', 'tamer_node'):  # their outputs wait for it to match
             overrides[node]['wait_for_recorder'] = RECORDER
+    if options.trainer == 'teacher':  # it judges from env_status: the env waits for it too
+        overrides['env_node']['wait_status_subscribers'] = status_listeners(options)
     return {node: values for node, values in overrides.items() if values}
 
 
@@ -403,6 +405,18 @@ def default_run_dir(cwd: Path, condition: str, seed: int, now: datetime.datetime
                     task: str = DEFAULT_TASK) -> Path:
     named = '' if task == DEFAULT_TASK else f'{task}-'
     return cwd / 'runs' / f'{now:%Y%m%d-%H%M%S}-{named}{condition}-seed{seed}'
+
+
+def status_listeners(options: LaunchOptions) -> int:
+    """
+    Return how many readers of env_status the env waits for before its first step.
+
+    The launcher's monitor, the teacher, and the recorder and the console when they run: a DDS
+    match is per topic, so a teacher that hears agent_position may not hear env_status yet, and
+    lockstep plays a hundred steps in the time a late match takes (the teacher then judges none
+    of them).
+    """
+    return 2 + int(options.records) + int(options.console)
 
 
 def build_plan(options: LaunchOptions, bin_dir: Path, cwd: Path,

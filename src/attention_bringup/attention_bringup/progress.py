@@ -116,6 +116,11 @@ class ProgressTracker:
     _candidates: List[tuple] = field(default_factory=list)
     _new_rows: List[dict] = field(default_factory=list)
 
+    @property
+    def last_stamp_ns(self) -> int:
+        """Return the stamp of the newest step seen (-1: none)."""
+        return self._last_stamp
+
     def on_status(self, stamp_ns: int, values: Mapping[str, object], wall_s: float) -> None:
         """Take one ``env_status`` (parsed key-values); a step seen twice counts once."""
         if values.get('finished'):

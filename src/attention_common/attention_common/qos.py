@@ -35,8 +35,16 @@ Depth does not take part in QoS matching, so every reader matches as before."""
 ACTIONS = _reliable(10)
 """action (sensor_msgs/Joy)."""
 
-STEP_DATA = _reliable(50)
-"""agent_position, env_status: one small message per step; a burst must not be lost."""
+STEP_DATA = _reliable(1000)
+"""agent_position, env_status: one small message per step; a burst must not be lost. Lockstep
+waits for the learner only, so the teacher may fall behind the env (a busy core): a reliable
+KEEP_LAST writer overwrites what a slow reader has not taken yet, and each step lost leaves two
+actions unjudged. 1000 steps are 4 s at 250 steps/s."""
+
+LATCHED = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
+                     reliability=ReliabilityPolicy.RELIABLE,
+                     durability=DurabilityPolicy.TRANSIENT_LOCAL)
+"""trainer_status: the newest state only, given to a reader that comes late."""
 
 HUMAN = QoSProfile(
     history=HistoryPolicy.KEEP_ALL,

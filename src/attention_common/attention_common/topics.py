@@ -18,6 +18,9 @@ UTTERANCE = 'utterance'              # std_msgs/String, feedback node or a perso
 UTTERANCE_STAMPED = 'utterance_stamped'  # diagnostic_msgs/DiagnosticArray, synthetic trainer
 FEEDBACK = 'feedback'                # std_msgs/Float32 scalar h, feedback node or a person
 FEEDBACK_STAMPED = 'feedback_stamped'    # geometry_msgs/Vector3Stamped, synthetic trainer
+# diagnostic_msgs/DiagnosticArray, latched: how far the synthetic trainer got (the newest step
+# judged from, what it gave, what it holds, its counts); the launcher's end waits on it
+TRAINER_STATUS = 'trainer_status'
 
 SALIENCY = 'saliency'                # sensor_msgs/Image rgb8, same stamp as its observation
 SALIENCY_MASK = 'saliency_mask'      # sensor_msgs/Image mono8 debug view of the mask

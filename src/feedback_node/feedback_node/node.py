@@ -13,7 +13,8 @@ is due, the utterance said at T' (``utterance_stamped``, stamp T', then the plai
 ``utterance``). With ``synthetic`` false it
 publishes nothing and logs what a person says on ``utterance`` and ``feedback``; bad input gets
 a clear error line and is counted. ``synthetic`` can be switched at run time
-(``ros2 param set /feedback_node synthetic false``).
+(``ros2 param set /feedback_node synthetic false``). ``trainer_status`` (latched) says how far
+the synthetic trainer got: the launcher ends a run only once it judged the last step.
 """
 
 
@@ -40,6 +41,8 @@ HARDWARE_ID = 'synthetic_trainer'
 HELD_FEEDBACK = 100_000
 """Judgements held while nobody subscribes to the feedback yet (start-up), at most."""
 HELD_CHECK_S = 0.05
+TRAINER_STATUS_PERIOD_S = 0.1
+"""How often ``trainer_status`` is published when it changed (steady seconds)."""
 
 
 class FeedbackNode(Node):
@@ -71,6 +74,11 @@ class FeedbackNode(Node):
         self._utterance_stamped_pub = self.create_publisher(
             DiagnosticArray, topics.UTTERANCE_STAMPED, qos.HUMAN)
         self._utterance_pub = self.create_publisher(String, topics.UTTERANCE, qos.HUMAN)
+        self._trainer_status_pub = self.create_publisher(
+            DiagnosticArray, topics.TRAINER_STATUS, qos.LATCHED)
+        self._handled_ns = -1  # the newest step the synthetic trainer has judged from
+        self._given = {'given_feedback': 0, 'given_utterances': 0}  # published to the graph
+        self._last_trainer_status = None
         self.create_subscription(PointStamped, topics.AGENT_POSITION, self._on_position,
                                  qos.STEP_DATA)
         if self._kind == 'teacher':
@@ -84,6 +92,7 @@ class FeedbackNode(Node):
         self._unsent = collections.deque(maxlen=HELD_FEEDBACK)  # until the learner is matched
         self._unsaid = collections.deque(maxlen=HELD_FEEDBACK)  # utterances, likewise
         self.create_timer(HELD_CHECK_S, self._send_held, clock=steady)
+        self.create_timer(TRAINER_STATUS_PERIOD_S, self._publish_trainer_status, clock=steady)
         self._last_summary = None
         self.get_logger().info(f'feedback_node ready: {self._mode_text()}')
 
@@ -132,6 +141,7 @@ class FeedbackNode(Node):
         if not self._synthetic or self._kind != 'thesis':
             return
         out = self._trainer.on_position(stamp_ns, x, y)
+        self._handled_ns = max(self._handled_ns, stamp_ns)
         if self._trainer.counts['restarts'] > self._restarts_logged:
             self._restarts_logged = self._trainer.counts['restarts']
             self.get_logger().warning(
@@ -172,6 +182,7 @@ class FeedbackNode(Node):
                 stamped_utterance, plain = self._unsaid.popleft()
                 self._utterance_stamped_pub.publish(stamped_utterance)
                 self._utterance_pub.publish(plain)
+                self._given['given_utterances'] += 1
         stamped = not (self._kind == 'teacher' and self._config.delayed)
         publisher = self._feedback_stamped_pub if stamped else self._feedback_pub
         if publisher.get_subscription_count() < self._wait_subscribers:
@@ -186,6 +197,29 @@ class FeedbackNode(Node):
                 self._feedback_stamped_pub.publish(msg_out)
             if not stamped or self._plain_copies:
                 self._feedback_pub.publish(Float32(data=float(h)))
+            self._given['given_feedback'] += 1
+
+    def _publish_trainer_status(self) -> None:
+        """
+        Say on ``trainer_status`` (latched) how far the synthetic trainer got, when it changed.
+
+        ``handled_ns``: the newest step judged from (-1: none); ``given_*``: what went out;
+        ``held``: what waits for its readers; the trainer's counts besides. The launcher waits
+        for it at a run's end: every step judged, and everything given logged by the learner.
+        """
+        values = {'handled_ns': self._handled_ns, **self._given,
+                  'held': len(self._unsent) + len(self._unsaid),
+                  **self._counts, **self._trainer.counts}
+        if values == self._last_trainer_status:
+            return
+        self._last_trainer_status = values
+        status = DiagnosticStatus(level=DiagnosticStatus.OK, name='trainer',
+                                  hardware_id=HARDWARE_ID, message=self._kind,
+                                  values=[KeyValue(key=key, value=str(value))
+                                          for key, value in values.items()])
+        msg = DiagnosticArray(status=[status])
+        msg.header.stamp = self.get_clock().now().to_msg()
+        self._trainer_status_pub.publish(msg)
 
     # -- the teacher --------------------------------------------------------------------------
 
@@ -204,6 +238,7 @@ class FeedbackNode(Node):
         if not self._synthetic:
             return
         out = self._trainer.on_step(seen)
+        self._handled_ns = max(self._handled_ns, seen.stamp_ns)
         if self._trainer.counts['restarts'] > self._restarts_logged:
             self._restarts_logged = self._trainer.counts['restarts']
             self.get_logger().warning(f'env_status stamps went back (now {seen.stamp_ns} ns): '
