@@ -116,6 +116,7 @@ class MessageLog:
 
     def __init__(self):
         self.messages: List[object] = []
+        self.subscription = None  # set by TopicProbe.subscribe
         self._cond = threading.Condition()
 
     def append(self, msg) -> None:
@@ -156,7 +157,7 @@ class TopicProbe:
 
     def subscribe(self, msg_type, topic: str, qos) -> MessageLog:
         log = MessageLog()
-        self.node.create_subscription(msg_type, topic, log.append, qos)
+        log.subscription = self.node.create_subscription(msg_type, topic, log.append, qos)
         return log
 
     def publisher(self, msg_type, topic: str, qos):
@@ -167,6 +168,11 @@ class TopicProbe:
 
     def wait_for_publishers(self, topic: str, count: int = 1, timeout: float = 10.0) -> bool:
         return wait_until(lambda: self.node.count_publishers(topic) >= count, timeout)
+
+    @staticmethod
+    def wait_matched(log: 'MessageLog', count: int = 1, timeout: float = 10.0) -> bool:
+        """Wait until ``count`` writers are matched to the subscription behind ``log``."""
+        return wait_until(lambda: log.subscription.get_publisher_count() >= count, timeout)
 
     def close(self) -> None:
         self.executor.shutdown(timeout_sec=1.0)

@@ -242,11 +242,15 @@ def test_the_teacher_survives_bad_env_status_among_a_real_envs(probe, start_node
     judged = probe.subscribe(Vector3Stamped, topics.FEEDBACK_STAMPED, qos.HUMAN)
     trainer = start_node('feedback_node', {'trainer': 'teacher', 'summary_period': 0.5,
                                            'utterance_interval': -1.0})
-    env = start_node('env_node', {'warmup_steps': 0, 'action_timeout': 30.0})
+    # env_node steps only once the teacher and the probe hear its env_status (a DDS match is per
+    # writer: under load the teacher once heard the probe's statuses but none of the env's).
+    env = start_node('env_node', {'warmup_steps': 0, 'action_timeout': 30.0,
+                                  'wait_status_subscribers': 2})
     # The probe hears env_status itself: wait for the teacher too (2), or the bad statuses may
     # go out before the teacher has matched.
     assert probe.wait_for_subscribers(injected, count=2, timeout=STARTUP_S)
     assert probe.wait_for_subscribers(actions, timeout=STARTUP_S)
+    assert probe.wait_matched(judged, timeout=STARTUP_S)  # volatile: judgements before it are lost
 
     def play(steps):
         for _ in range(steps):
