@@ -116,8 +116,10 @@ def test_the_session_replays_into_a_fresh_learner_that_then_acts(recorded_run, t
     from attention_bringup.replay.session import replay_items
     from session_bag.reader import BagReader
     from tamer_node.persistence import load_checkpoint
-    executed = {item.stamp: item.executed for item in replay_items(
-        BagReader(run_dir / 'bag').messages()) if item.topic == 'observation'}
+    executed = {}  # a step's first copy carries its action (a re-sent observation has none)
+    for item in replay_items(BagReader(run_dir / 'bag').messages()):
+        if item.topic == 'observation':
+            executed.setdefault(item.stamp, item.executed)
     buffer = load_checkpoint(tmp_path / 'replay')['buffer']
     count = min(int(buffer['added']), int(buffer['capacity']))
     learned = list(zip(buffer['columns']['stamps'][:count].tolist(),
