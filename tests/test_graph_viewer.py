@@ -22,7 +22,8 @@ from foxglove_client import FoxgloveClient, SUBPROTOCOL
 from graph_viewer.bag_plots import main as plots_main, PLOTS_FILE
 from graph_viewer.config import ViewerConfig
 from graph_viewer.forwarded import FORWARDED, RateLimit
-from graph_viewer.layout import LAYOUT_FILE, layout_json, layout_topics
+from graph_viewer.layout import LAYOUT_FILE, layout_json, layout_topics, LICHTBLICK_FILE
+from graph_viewer.lichtblick import to_lichtblick
 from graph_viewer.plots import (action_values_record, env_status_record, metrics_record,
                                 plot_topic, PLOTTED)
 from graph_viewer.subprotocol import LEGACY, rewrite_request, rewrite_response, SDK
@@ -110,6 +111,57 @@ def test_the_shipped_layout_is_the_code_and_reads_only_served_channels():
     read = layout_topics()
     assert {'/observation', '/saliency', '/feedback', '/plot/metrics'} <= read
     assert read <= served, read - served
+
+
+def _mosaic_leaves(node) -> list:
+    if isinstance(node, str):
+        return [node]
+    assert set(node) == {'first', 'second', 'direction', 'splitPercentage'}, node
+    assert node['direction'] in ('row', 'column') and 0 < node['splitPercentage'] < 100
+    return _mosaic_leaves(node['first']) + _mosaic_leaves(node['second'])
+
+
+def test_the_lichtblick_layout_holds_every_panel_where_lichtblick_looks():
+    assert LICHTBLICK_FILE.read_text() == layout_json('lichtblick'), (
+        'run graph_viewer_layout --format lichtblick to refresh it')
+    layout = json.loads(LICHTBLICK_FILE.read_text())
+    # What Lichtblick's import checks before it takes a file (its validateLayoutData).
+    assert isinstance(layout['configById'], dict) and isinstance(layout['globalVariables'], dict)
+    assert isinstance(layout['playbackConfig']['speed'], float)
+    configs = layout['configById']
+    top = _mosaic_leaves(layout['layout'])
+    in_tabs = [leaf for panel_id in top if panel_id.startswith('Tab!')
+               for tab in configs[panel_id]['tabs'] for leaf in _mosaic_leaves(tab['layout'])]
+    assert sorted(top + in_tabs) == sorted(configs)  # every panel placed once, none missing
+    foxglove = json.loads(LAYOUT_FILE.read_text())
+    panels = []
+
+    def visit(content):
+        if content['type'] == 'panel':
+            panels.append(content)
+        for child in content.get('items', []) + content.get('tabs', []):
+            visit(child['content'])
+    visit(foxglove['content'])
+    assert len(panels) == sum(not panel_id.startswith('Tab!') for panel_id in configs)
+    for panel in panels:  # the same config under the same title
+        matches = [c for c in configs.values() if c.get('lichtblickPanelTitle') == panel['title']]
+        assert len(matches) == 1, panel['title']
+        mine = {k: v for k, v in matches[0].items() if not k.endswith('PanelTitle')}
+        if panel['panelType'] == 'Plot':
+            assert all(path.pop('enabled') is True for path in mine['paths'])
+        assert mine == panel['config']
+
+
+def test_a_split_of_three_becomes_two_nested_splits_with_its_proportions():
+    panel = {'type': 'panel', 'panelType': 'Plot', 'title': 'a', 'config': {'paths': []}}
+    layout = {'version': 1, 'content': {'type': 'split', 'direction': 'row', 'items': [
+        {'proportion': 1, 'content': panel}, {'proportion': 1, 'content': panel},
+        {'proportion': 2, 'content': panel}]}}
+    mosaic = to_lichtblick(layout)['layout']
+    assert mosaic['splitPercentage'] == 25.0 and mosaic['second']['splitPercentage'] == 33.333
+    assert _mosaic_leaves(mosaic) == ['Plot!a', 'Plot!a_2', 'Plot!a_3']  # ids never collide
+    with pytest.raises(ValueError, match='not a foxglove-sdk layout'):
+        to_lichtblick({'configById': {}})
 
 
 # The real graph, watched from Foxglove's side of the protocol.

@@ -40,7 +40,7 @@ from attention_common.run_files import (
     CHECKPOINT_DIR, FEEDBACK_LOG, GALLERY_FILE, LEARNING_CURVE_FILE, LOGS_DIR, METRICS_CSV,
     of_session, OPTIONS_FILE, OVERRIDES_FILE, PARAMS_FILE, PIDS_FILE, PROGRESS_FILE, SUMMARY_FILE)
 from attention_tasks.task import load_task, ROOM_1
-from graph_viewer.layout import LAYOUT_FILE
+from graph_viewer.layout import LAYOUT_FILE, LICHTBLICK_FILE
 from session_bag import info as bag_info
 from session_bag.reader import ends_whole, storage_path
 from session_bag.repair import repair
@@ -60,7 +60,7 @@ SERVERS = (
      'words and press Enter)'),
     ('foxglove', FOXGLOVE, r'Foxglove bridge at (\S+)',
      'Foxglove: {url} (in Foxglove or Lichtblick: Open connection, Foxglove WebSocket, this '
-     'URL; the layout: {layout})'),
+     'URL; the layout: {layout}, in Lichtblick {lichtblick_layout})'),
 )
 """(option, node, what its log says once it serves, what the launcher prints)."""
 
@@ -285,7 +285,8 @@ class Launcher:
             found = re.search(pattern, log_tail(command.log_path))
             if found:
                 self.urls[option] = found.group(1)
-                self._say(text.format(url=found.group(1), layout=LAYOUT_FILE))
+                self._say(text.format(url=found.group(1), layout=LAYOUT_FILE,
+                                      lichtblick_layout=LICHTBLICK_FILE.name))
 
     def _label_gallery(self, tracker, gallery) -> None:
         """Note the agent step of each gallery image while the tracker still knows it."""

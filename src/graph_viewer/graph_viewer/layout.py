@@ -2,7 +2,9 @@
 The Foxglove layout of a teaching session, built with foxglove-sdk's layout types.
 
 ``graph_viewer_layout [OUT]`` writes it (default: the shipped ``layouts/attention_graph.json``,
-which a test keeps equal to this code). In Foxglove: Layouts, Import from file. The panels:
+which a test keeps equal to this code). In Foxglove: Layouts, Import from file.
+``graph_viewer_layout --format lichtblick`` writes the same layout in Lichtblick's format
+(``layouts/attention_graph_lichtblick.json``, ``lichtblick.py``). The panels:
 
 - the frame (``/observation``), the saliency image and its mask (tabs);
 - the feedback timeline: each press (``/feedback``), the synthetic trainer's stamped verdicts
@@ -22,9 +24,11 @@ from typing import Optional
 
 from attention_common import topics
 import foxglove.layouts as fl
+from graph_viewer.lichtblick import to_lichtblick
 from graph_viewer.plots import plot_topic
 
 LAYOUT_FILE = Path(__file__).resolve().parent / 'layouts' / 'attention_graph.json'
+LICHTBLICK_FILE = LAYOUT_FILE.with_name('attention_graph_lichtblick.json')
 
 
 def _topic(name: str) -> str:
@@ -105,19 +109,26 @@ def layout_topics() -> set:
     return found
 
 
-def layout_json() -> str:
+def layout_json(layout_format: str = 'foxglove') -> str:
     """Return the layout as the shipped file holds it (indented, one trailing newline)."""
-    return json.dumps(json.loads(build_layout().to_json()), indent=2) + '\n'
+    layout = json.loads(build_layout().to_json())
+    if layout_format == 'lichtblick':
+        layout = to_lichtblick(layout)
+    return json.dumps(layout, indent=2) + '\n'
 
 
 def main(argv: Optional[list] = None) -> int:
     parser = argparse.ArgumentParser(
         prog='graph_viewer_layout',
-        description='Write the Foxglove layout of a teaching session (import it in Foxglove: '
-                    'Layouts, Import from file).')
-    parser.add_argument('out', nargs='?', default=str(LAYOUT_FILE),
-                        help='the JSON file to write (default: the shipped one, %(default)s)')
+        description='Write the Foxglove layout of a teaching session (import it in Foxglove or '
+                    'Lichtblick: Layouts, Import from file).')
+    parser.add_argument('out', nargs='?', default=None,
+                        help=f'the JSON file to write (default: the shipped one, {LAYOUT_FILE} '
+                             f'or {LICHTBLICK_FILE.name})')
+    parser.add_argument('--format', choices=('foxglove', 'lichtblick'), default='foxglove',
+                        help="foxglove-sdk's format (Foxglove), or the one Lichtblick imports")
     args = parser.parse_args(argv)
-    Path(args.out).write_text(layout_json())
-    print(f'layout written to {args.out}', file=sys.stderr)
+    out = args.out or (LICHTBLICK_FILE if args.format == 'lichtblick' else LAYOUT_FILE)
+    Path(out).write_text(layout_json(args.format))
+    print(f'layout written to {out}', file=sys.stderr)
     return 0
