@@ -38,6 +38,7 @@ import tempfile
 import threading
 import time
 
+from attention_bringup.experiment.stats import mean_ci
 from attention_common.executors import executor_name
 from machine_info import machine
 from tamer_node.config import TamerConfig
@@ -310,6 +311,13 @@ def foxglove_cost(pairs: int, steps: int, workdir: Path, pace_updates: float,
           'where you choose)')
     print(f'\n| cost of watching | {100 * cost:.1f} % (target <= '
           f'{100 * FOXGLOVE_COST_TARGET:g} %: {verdict}) |')
+    # Each pair ran back to back, so its own slowdown leaves out the drift between pairs.
+    paired = mean_ci([100.0 * (1.0 - w / a) for a, w in zip(alone, watched)])
+    if paired.high is not None:
+        shown = ('met' if paired.high <= 100 * FOXGLOVE_COST_TARGET else
+                 'missed' if paired.low > 100 * FOXGLOVE_COST_TARGET else 'neither shown')
+        print(f'| slowdown per pair, mean [95 % CI] | {paired.mean:.1f} % [{paired.low:.1f}, '
+              f'{paired.high:.1f}] over {paired.n} pairs (sd {paired.sd:.1f}): target {shown} |')
     return 0
 
 
