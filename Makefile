@@ -24,9 +24,10 @@ $(STAMP): requirements.txt $(foreach p,$(PACKAGES),src/$(p)/setup.py src/$(p)/pa
 run: setup
 	$(BIN)/attention_train $(ARGS)
 
-# Two pytest workers (pytest-xdist), each test file whole on one of them, each worker in a ROS
+# Three pytest workers on 2 cores (topic tests mostly wait) (pytest-xdist),
+# each test file whole on one of them, each worker in a ROS
 # domain of its own (tests/conftest.py); TEST_WORKERS=0 runs them in this one process.
-TEST_WORKERS ?= 2
+TEST_WORKERS ?= 3
 test: setup
 	$(BIN)/python -m pytest tests -n $(TEST_WORKERS) --dist loadfile $(PYTEST_ARGS)
 

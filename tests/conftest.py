@@ -30,8 +30,8 @@ LONGEST_FIRST = (
 )
 """The files that take longest (140 s down to 17 s of their tests' time in one run of the suite
 on 2 cores), run first: ``make test`` gives each pytest-xdist worker whole files
-(``--dist loadfile``), and a long file started last keeps one worker busy while the other
-idles."""
+(``--dist loadfile``), and a long file started last keeps one worker busy while the others
+idle."""
 
 
 def pytest_collection_modifyitems(config, items):
