@@ -89,6 +89,12 @@ def test_a_study_on_ray_writes_what_the_local_backend_writes(cluster, tmp_path):
         summary = json.loads((tmp_path / out / 'runs' / 'vanilla' / 'seed1' /
                               'summary.json').read_text())
         assert set(map(tuple, summary['signals_sent'].values())) == {('SIGINT',)}, out
+        # The run ended as soon as the learner had logged what the trainer gave: before the
+        # learner counted its lines, a busy machine lost the first receipts and every trial
+        # waited out the launcher's 60 s drain.
+        for arm in ('vanilla', 'language'):
+            said = (tmp_path / out / 'runs' / arm / 'seed1' / 'attention_train.log').read_text()
+            assert 'stopping the nodes although' not in said, (out, arm, said)
     log = json.loads((tmp_path / 'ray' / 'study_log.json').read_text())
     assert log[-1]['backend'] == 'ray' and log[-1]['trials_run'] == 2
 

@@ -316,7 +316,7 @@ class Launcher:
         while not self.interrupts:
             with monitor.lock:
                 missing = drain.behind(monitor.trainer_status, monitor.tracker.last_stamp_ns,
-                                       monitor.receipts)
+                                       monitor.receipts, drain.logged_lines(monitor.metrics))
             if missing is None:
                 return
             if time.monotonic() >= end:

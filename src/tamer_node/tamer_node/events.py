@@ -21,8 +21,11 @@ AGENT_COUNTERS = (
     'drop/observation_stamp', 'drop/saliency_stamp', 'session/restarts',
     'utterance/count', 'utterance/empty', 'utterance/too_long', 'feedback/logged',
     'disk/feedback_log_errors', 'act/paced', 'act/paced_ms', 'act/held',
+    'log/feedback_lines', 'log/utterance_lines',
 )
-"""Counted by the acting path, the intake and the node (``TamerAgent.counters``)."""
+"""Counted by the acting path, the intake and the node (``TamerAgent.counters``). ``log/...``:
+the lines this process wrote to feedback_log.jsonl (a resumed run's earlier lines not counted),
+by which the launcher knows the learner logged all a trainer gave even if it heard no receipt."""
 
 
 @dataclass

@@ -88,6 +88,7 @@ class FeedbackIntake:
             # The receipt goes out once the line is durable (TamerConfig.sync).
             self.feedback_log.append(entry, lambda: self._receipt(entry))
             self.counters['feedback/logged'] += 1
+            self.counters['log/feedback_lines'] += 1
         except (OSError, ValueError) as error:  # a full disk: say so loudly, still learn
             self.counters['disk/feedback_log_errors'] += 1
             self._log('error', f'feedback #{event.seq} could not be written to '
@@ -103,6 +104,7 @@ class FeedbackIntake:
 
     def _log_utterance(self, entry: dict) -> None:
         self.feedback_log.append(entry, lambda: self._receipt(entry))
+        self.counters['log/utterance_lines'] += 1
 
     def on_utterance(self, text: str, extra: Optional[dict] = None) -> str:
         """
