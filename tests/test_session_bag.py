@@ -4,7 +4,9 @@ import json
 from pathlib import Path
 import shutil
 import sys
+import time
 
+from attention_bringup.replay.cli import send_until_answered
 from attention_bringup.replay.plan import build_plan, ReplayOptions
 from attention_bringup.replay.session import (
     Agreement, header_stamp_ns, LOOKAHEAD_OBSERVATIONS, replay_items)
@@ -306,3 +308,18 @@ def test_a_synced_flush_puts_the_flushed_bag_on_disk_first(tmp_path, monkeypatch
     assert unsynced.syncs == 0 and len(durable) == 1
     writer.close()
     unsynced.close()
+
+
+def test_a_step_the_learner_did_not_answer_is_sent_again_until_it_does():
+    # CI: a replay's first observation went before the learner's reader had matched its
+    # writer, so it never came and the step counted unanswered after 10 s.
+    sent, waits = [], []
+
+    def wait(seconds):
+        waits.append(seconds)
+        return len(sent) >= 3  # the third copy is answered
+    assert send_until_answered(lambda: sent.append(1), wait, timeout_s=10.0, resend_s=0.01) == 3
+    assert waits == [0.01, 0.01, 0.01]
+    # An answer to the first copy: sent once. None at all: it stops at the timeout.
+    assert send_until_answered(lambda: None, lambda s: True, 10.0, 0.01) == 1
+    assert 3 <= send_until_answered(lambda: None, lambda s: time.sleep(s), 0.05, 0.01) <= 6

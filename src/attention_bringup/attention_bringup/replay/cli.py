@@ -57,11 +57,31 @@ from session_bag.reader import BagReader
 STARTUP_TIMEOUT_S = 300.0
 ANSWER_TIMEOUT_S = 10.0
 """Longest wait for the learner's answer to one observation (then the step counts unanswered)."""
+RESEND_S = 1.0
+"""Without an answer by then, the observation goes again (same stamp), as the env re-sends its
+first step: a DDS match is per side, and a reader that matched late drops what came before."""
 RECEIPT_TIMEOUT_S = 10.0
 METRICS_TIMEOUT_S = 5.0
 STOP_TIMEOUT_S = 30.0
 PROGRESS_PERIOD_S = 15.0
 EXIT_INTERRUPTED = 130
+
+
+def send_until_answered(send, wait, timeout_s: float = ANSWER_TIMEOUT_S,
+                        resend_s: float = RESEND_S) -> int:
+    """
+    ``send()`` an observation, then again every ``resend_s`` until ``wait(s)`` sees its answer.
+
+    Return how many times it was sent; after ``timeout_s`` it stops (the step is unanswered).
+    """
+    deadline = time.monotonic() + timeout_s
+    sent = 0
+    while True:
+        send()
+        sent += 1
+        left = deadline - time.monotonic()
+        if wait(max(0.0, min(resend_s, left))) or left <= resend_s:
+            return sent
 
 
 class Replay:
@@ -186,8 +206,8 @@ class Replay:
             session = task_action_of_bytes(item.answered, self.task)
         if session is not None:
             player.send_taken(item.stamp, session)
-        player.send(topics.OBSERVATION, item.data)
-        player.wait_answer(item.stamp, ANSWER_TIMEOUT_S)
+        send_until_answered(lambda: player.send(topics.OBSERVATION, item.data),
+                            lambda wait_s: player.wait_answer(item.stamp, wait_s))
         self.agreement.add(item.stamp, session, player.answer(item.stamp))
 
     def _watch_session(self, messages):
