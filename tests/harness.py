@@ -7,6 +7,7 @@ Every wait has a deadline; nothing here sleeps for a fixed time to let things "s
 import os
 from pathlib import Path
 import signal
+import socket
 import subprocess
 import sys
 import threading
@@ -58,6 +59,13 @@ def loopback_address(hex_address: str) -> bool:
     mapped_v4 = hex_address.startswith('0000000000000000FFFF0000')
     return (hex_address == '00000000000000000000000001000000'
             or mapped_v4 and hex_address.endswith('7F'))
+
+
+def free_port() -> int:
+    """Return a TCP port free on 127.0.0.1 now (for a server a test or script starts)."""
+    with socket.socket() as probe:
+        probe.bind(('127.0.0.1', 0))
+        return probe.getsockname()[1]
 
 
 class NodeProcess:

@@ -10,7 +10,6 @@ import csv
 import json
 import math
 from pathlib import Path
-import socket
 import subprocess
 import sys
 import time
@@ -27,7 +26,7 @@ from graph_viewer.lichtblick import to_lichtblick
 from graph_viewer.plots import (action_values_record, env_status_record, metrics_record,
                                 plot_topic, PLOTTED)
 from graph_viewer.subprotocol import LEGACY, rewrite_request, rewrite_response, SDK
-from harness import listening_sockets, loopback_address
+from harness import free_port, listening_sockets, loopback_address
 from mcap.reader import make_reader
 import pytest
 from rclpy.serialization import deserialize_message
@@ -165,11 +164,6 @@ def test_a_split_of_three_becomes_two_nested_splits_with_its_proportions():
 
 
 # The real graph, watched from Foxglove's side of the protocol.
-def _free_port() -> int:
-    with socket.socket() as probe:
-        probe.bind(('127.0.0.1', 0))
-        return probe.getsockname()[1]
-
 
 WATCHED = ('/observation', '/metrics', '/plot/metrics', '/plot/env_status')
 
@@ -225,7 +219,7 @@ def _same(csv_text: str, value) -> bool:
 def watched_session(tmp_path_factory):
     """Run a real-time Room 1 session with the bridge, recorded, watched by a Foxglove client."""
     run_dir = tmp_path_factory.mktemp('foxglove') / 'run'
-    port = _free_port()
+    port = free_port()
     launcher = subprocess.Popen(
         [LAUNCHER, '--steps', str(STEPS), '--realtime', '--record', '--run-dir', str(run_dir),
          '--foxglove', '--foxglove-port', str(port)],

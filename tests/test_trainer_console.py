@@ -11,7 +11,6 @@ import json
 import os
 import re
 import signal
-import socket
 import urllib.error
 import urllib.request
 
@@ -21,7 +20,7 @@ from attention_common.stamps import stamp_to_ns
 from attention_tasks.task import load_task
 from cdp import Browser, CHROMIUM
 from diagnostic_msgs.msg import DiagnosticArray
-from harness import wait_until
+from harness import free_port, wait_until
 import pytest
 from sensor_msgs.msg import Image
 from std_msgs.msg import Float32
@@ -31,12 +30,6 @@ from trainer_console.web import ConsoleServer, Frames
 
 STARTUP_S = 60.0
 CI = bool(os.environ.get('CI'))
-
-
-def free_port() -> int:
-    with socket.socket() as probe_socket:
-        probe_socket.bind(('127.0.0.1', 0))
-        return probe_socket.getsockname()[1]
 
 
 def log_lines(run_dir):

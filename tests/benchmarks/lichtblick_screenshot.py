@@ -30,7 +30,6 @@ import os
 from pathlib import Path
 import re
 import signal
-import socket
 import subprocess
 import sys
 import tempfile
@@ -41,6 +40,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from cdp import Browser  # noqa: E402,I100 (tests/cdp.py: Chromium over the DevTools protocol)
 from graph_viewer.bag_plots import PLOTS_FILE  # noqa: E402,I100
 from graph_viewer.layout import LICHTBLICK_FILE  # noqa: E402,I100
+from harness import free_port  # noqa: E402,I100
 from mcap.reader import make_reader  # noqa: E402,I100
 
 BIN = Path(sys.executable).parent
@@ -48,17 +48,9 @@ LAYOUT_PATH = '/' + LICHTBLICK_FILE.name
 
 
 class _Handler(http.server.SimpleHTTPRequestHandler):
-    """Lichtblick's files, the session layout at LAYOUT_PATH, and files by name, with ranges."""
+    """Lichtblick's files, and ``extra`` files by path (the layout, a bag), with ranges."""
 
     extra: dict = {}  # '/name' -> a file to serve there
-
-    def translate_path(self, path):
-        path = path.split('?')[0]
-        if path == LAYOUT_PATH:
-            return str(LICHTBLICK_FILE)
-        if path in self.extra:
-            return str(self.extra[path])
-        return super().translate_path(path)
 
     def send_head(self):
         """Serve an extra file whole or, for ``Range: bytes=A-B``, that slice (206)."""
@@ -72,7 +64,7 @@ class _Handler(http.server.SimpleHTTPRequestHandler):
             int(found.group(1)), min(int(found.group(2) or size - 1), size - 1))
         file.seek(start)
         self.send_response(206 if found else 200)
-        self.send_header('Content-Type', 'application/octet-stream')
+        self.send_header('Content-Type', self.guess_type(self.extra[path]))
         self.send_header('Accept-Ranges', 'bytes')
         if found:
             self.send_header('Content-Range', f'bytes {start}-{end}/{size}')
@@ -112,18 +104,12 @@ def _serve(directory: Path, extra: dict) -> http.server.ThreadingHTTPServer:
     return server
 
 
-def _free_port() -> int:
-    with socket.socket() as probe:
-        probe.bind(('127.0.0.1', 0))
-        return probe.getsockname()[1]
-
-
 def _start_session(steps: int, run_dir: Path) -> tuple:
     """Start the run; return (process, the bridge's URL)."""
     env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST')
     process = subprocess.Popen(
         [str(BIN / 'attention_train'), '--realtime', '--foxglove', '--record',
-         '--foxglove-port', str(_free_port()),
+         '--foxglove-port', str(free_port()),
          '--steps', str(steps), '--run-dir', str(run_dir)],
         stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, env=env)
     for line in process.stderr:
@@ -177,7 +163,7 @@ def main() -> int:
         parser.error(f'{args.lichtblick} has no index.html: pass the web build (web/.webpack)')
     size = tuple(int(v) for v in args.size.split('x'))
     work = Path(tempfile.mkdtemp(prefix='lichtblick-shot-'))
-    extra: dict = {}
+    extra = {LAYOUT_PATH: LICHTBLICK_FILE}
     server = _serve(args.lichtblick, extra)
     page = f'http://127.0.0.1:{server.server_address[1]}'
     process = None
