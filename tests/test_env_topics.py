@@ -10,7 +10,7 @@ from attention_common.stamps import frames_to_ns, stamp_to_ns
 from diagnostic_msgs.msg import DiagnosticArray
 from env_node.status import NO_LATENCY, parse_status
 from geometry_msgs.msg import PointStamped
-from harness import wait_until
+from harness import TopicProbe, wait_until
 import pytest
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
@@ -288,6 +288,27 @@ def test_first_step_waits_for_the_expected_subscribers(probe, start_node):
     assert observations.wait_count(1, REPLY_S)
     assert positions.wait_for(
         lambda m: stamps(m)[:1] == stamps(observations.snapshot())[:1], REPLY_S)
+    assert env.stop() == 0
+
+
+def test_real_time_waits_for_the_named_learner_not_any_reader(probe, start_node):
+    """
+    wait_observation_nodes: a viewer's reader does not make the count in a learner's stead.
+
+    In CI the console's and the recorder's readers made the count while tamer_node was still
+    loading torch, and a real-time run's 60 steps went by with no learner to answer them.
+    """
+    env = start_node('env_node', {'warmup_steps': 0, 'rate_hz': 15.0, 'max_steps': 30,
+                                  'wait_observation_subscribers': 1,
+                                  'wait_observation_nodes': 'late_learner'})
+    viewer = probe.subscribe(Image, topics.OBSERVATION, qos.FRAMES)  # the count is made
+    assert env.wait_for_log('not yet matched with late_learner', STARTUP_S), \
+        env.log_text()[-2000:]
+    assert not viewer.messages, 'a step went out before the named node subscribed'
+    with TopicProbe('late_learner') as learner:
+        heard = learner.subscribe(Image, topics.OBSERVATION, qos.FRAMES)
+        assert heard.wait_count(1, REPLY_S) and viewer.wait_count(1, REPLY_S), \
+            env.log_text()[-2000:]
     assert env.stop() == 0
 
 

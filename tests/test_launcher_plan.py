@@ -613,6 +613,9 @@ def test_a_person_s_session_is_recorded_unless_asked_not_to(tmp_path, synthetic,
     # The env and the trainer wait for the recorder as for the learners: no step unrecorded.
     assert env.get('wait_observation_subscribers', 2) == 2 + records
     assert env.get('wait_position_subscribers', 1) == 1 + records
+    # By name too: the console's and the launcher's readers never stand in for a learner's.
+    assert env['wait_observation_nodes'].split(',') == (
+        ['saliency_node', 'tamer_node'] + ['session_recorder'] * records)
     assert feedback['wait_feedback_subscribers'] == 2 + records
     assert feedback['wait_utterance_subscribers'] == 2 + records
     # The learners' outputs (actions, receipts, credit, metrics, saliency) wait for it too.

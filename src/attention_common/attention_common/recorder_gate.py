@@ -14,7 +14,7 @@ recorder had not matched. Thread-safe: any thread may publish through it.
 """
 
 import threading
-from typing import List, Sequence
+from typing import Iterable, List, Sequence
 
 from rclpy.clock import Clock, ClockType
 
@@ -23,11 +23,24 @@ RECORDER_WAIT_S = 10.0
 """The nodes' default longest start-up wait for the recorder (wall seconds)."""
 
 
+def nodes_unmatched(node, publisher, names: Iterable[str]) -> List[str]:
+    """
+    Return those of the nodes ``names`` not yet matched with ``publisher`` ([]: all are).
+
+    The graph lists a node's subscription and the writer matches its reader separately, so all
+    count as matched only once the writer has matched as many readers as the graph lists.
+    """
+    readers = node.get_subscriptions_info_by_topic(publisher.topic_name)
+    listed = {info.node_name for info in readers}
+    missing = [name for name in names if name not in listed]
+    if not missing and publisher.get_subscription_count() < len(readers):
+        return list(names)
+    return missing
+
+
 def recorder_matched(node, publisher, recorder: str) -> bool:
     """Return whether node ``recorder`` is matched with ``publisher`` (graph and match count)."""
-    readers = node.get_subscriptions_info_by_topic(publisher.topic_name)
-    return (any(info.node_name == recorder for info in readers)
-            and publisher.get_subscription_count() >= len(readers))
+    return not nodes_unmatched(node, publisher, (recorder,))
 
 
 class RecorderGate:

@@ -34,6 +34,12 @@ class EnvNodeConfig:
     """Start-up: send the first step only once this many subscribers of observation have
     matched (graph.yaml: 2, saliency_node and tamer_node), so no node misses the first steps
     while DDS discovery runs."""
+    wait_observation_nodes: str = ''
+    """Start-up: comma-separated names of nodes that must subscribe to observation before the
+    first step (the launcher: the learners and the recorder). The count above cannot tell a
+    learner from a viewer: in real time the console's and the recorder's readers once made it
+    while tamer_node was still loading, and the 60 steps went by unanswered. '' = the count
+    only."""
     wait_position_subscribers: int = 0
     """Start-up: likewise for agent_position (graph.yaml: 1, the synthetic trainer)."""
     wait_status_subscribers: int = 0

@@ -23,6 +23,7 @@ from attention_common.image_codec import numpy_to_image
 from attention_common.joy_actions import ACTION_MEANINGS, joy_to_action, JoyActionError
 from attention_common.node_main import Closing, run_node, StartupError
 from attention_common.parameters import declare_dataclass
+from attention_common.recorder_gate import nodes_unmatched
 from attention_common.stamps import ns_to_stamp, stamp_to_ns
 from attention_tasks.task import load_task, Step, UnknownTask
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
@@ -69,6 +70,8 @@ class EnvNode(Closing, Node):
         self._wait_subscribers = ((self.OBS, config.wait_observation_subscribers),
                                   (self.POSITION, config.wait_position_subscribers),
                                   (self.STATUS, config.wait_status_subscribers))
+        self._wait_observation_nodes = [
+            name.strip() for name in config.wait_observation_nodes.split(',') if name.strip()]
         self.get_logger().info(f'starting {task.env_id} (task {task.name}), '
                                f'{world.warmup_steps} warm-up steps')
         try:
@@ -223,8 +226,12 @@ class EnvNode(Closing, Node):
         counts = {self.OBS: self._obs_pub.get_subscription_count(),
                   self.POSITION: self._position_pub.get_subscription_count(),
                   self.STATUS: self._status_pub.get_subscription_count()}
-        return ', '.join(f'{topic} has {counts[topic]} of {wanted}'
-                         for topic, wanted in self._wait_subscribers if counts[topic] < wanted)
+        missing = [f'{topic} has {counts[topic]} of {wanted}'
+                   for topic, wanted in self._wait_subscribers if counts[topic] < wanted]
+        nodes = nodes_unmatched(self, self._obs_pub, self._wait_observation_nodes)
+        if nodes:
+            missing.append(f'{self.OBS} not yet matched with {", ".join(nodes)}')
+        return ', '.join(missing)
 
     def _on_timeout(self) -> None:
         with self._lock:
