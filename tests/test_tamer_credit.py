@@ -183,6 +183,37 @@ def test_a_decision_is_held_for_decision_period_s(tmp_path):
     assert any(len(set(free[i:i + 3])) > 1 for i in range(0, 12, 3))
 
 
+def test_a_held_decision_ends_early_only_when_another_action_is_clearly_better(tmp_path):
+    frames = np.random.default_rng(2).integers(0, 256, (3, 210, 160, 3), np.uint8)
+
+    def second_action(margin):
+        config = TamerConfig(run_dir=str(tmp_path / str(margin)), greedy_margin=0.1,
+                             pace_updates=0.0, checkpoint_period_s=0.0, update_rate_hz=0.0,
+                             decision_period_s=1.0, decision_switch_margin=margin)
+        agent = TamerAgent(config, tmp_path / str(margin), encoder=Encoder())
+        agent.start()
+        try:
+            last = agent.actor.model.head[-1]
+            with torch.no_grad():  # every action at -1: the first decision is any of them
+                last.weight.zero_()
+                last.bias.fill_(-1.0)
+            first = agent.on_observation(66_666_667, frames[0])
+            better = (first + 1) % NUM_ACTIONS
+            with torch.no_grad():  # a step later H has learned another action is good
+                last.bias[better] = 0.5
+            return first, better, agent.on_observation(133_333_334, frames[1]), dict(
+                agent.counters)
+        finally:
+            agent.close()
+
+    first, better, second, counters = second_action(0.0)
+    assert second == first and counters['act/held'] == 1  # held its whole second
+    first, better, second, counters = second_action(2.0)
+    assert second == first and counters['act/switched'] == 0  # 0.5 - (-1) is not above 2
+    first, better, second, counters = second_action(0.5)
+    assert second == better and counters['act/switched'] == 1 and counters['act/held'] == 0
+
+
 def test_a_tie_that_includes_the_previous_action_keeps_it():
     actor = ActingModel(HModel(), greedy_margin=0.1, seed=0, keep_tied=True)
     tied = torch.full((NUM_ACTIONS,), -1.0)

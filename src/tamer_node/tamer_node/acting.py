@@ -57,6 +57,18 @@ class SnapshotSlot:
             return self._version, self._state
 
 
+def clearly_better(values: torch.Tensor, held: int, margin: float) -> bool:
+    """
+    Tell whether another action's H beats the held one's by more than ``margin`` (> 0).
+
+    H is read within the feedback range, as the greedy policy reads it.
+    """
+    if margin <= 0.0:
+        return False
+    clipped = values.clamp(-FEEDBACK_RANGE, FEEDBACK_RANGE)
+    return bool(clipped.max() - clipped[held] > margin)
+
+
 class ActingModel:
     """
     The actor's own copy of H: eval mode forever, refreshed from snapshots.
@@ -327,6 +339,9 @@ class ActingPath:
             values = self.actor.values_on_features(self._with_text(record, features))
         else:
             values = self.actor.predict(record.image(kind) if image is None else image)
+        if held is not None and clearly_better(values, held, self.config.decision_switch_margin):
+            self.counters['act/switched'] += 1
+            held = None  # what H learned overrides the rest of the decision
         action = held if held is not None else self._decide(values)
         if held is not None:
             self.counters['act/held'] += 1

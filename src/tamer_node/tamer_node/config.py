@@ -122,6 +122,11 @@ class TamerConfig:
     held on the next observations until this much time has passed (0 = a decision every step,
     the thesis's). 0.2 acts at 5 Hz, as TAMER agents did for a person to judge: 3 steps of Room
     1 (15 Hz), every step of DoorKey (1 Hz). Late credit then goes to the steps that chose."""
+    decision_switch_margin: float = 0.0
+    """With decision_period_s > 0: a held decision ends early when another action's H (within
+    the feedback range [-1, 1]) is above the held one's by more than this, so long decisions
+    (purer late credit) need not walk the agent into what it has learned is bad (0 = always
+    held for the whole period)."""
     greedy_margin: float = 0.0
     """0: the thesis's greedy policy (argmax, ties to the lowest action). Above 0: H clipped
     to [-1, 1], actions within this margin of the best are tied, ties broken at random
@@ -229,6 +234,7 @@ class TamerConfig:
             'greedy_margin': 0.0 <= self.greedy_margin <= 2.0,
             'explore': 0.0 <= self.explore < 1.0,
             'decision_period_s': self.decision_period_s >= 0.0,
+            'decision_switch_margin': self.decision_switch_margin >= 0.0,
             'credit_noise': 0.0 <= self.credit_noise < 0.5,
             'credit_refit_updates': self.credit_refit_updates >= 0,
             'credit_delay_bin_s': self.credit_delay_bin_s > 0.0,
