@@ -369,8 +369,7 @@ def launcher_overrides(options: LaunchOptions, seed: int, run_dir: Path,
     if options.records:  # the env and the trainer wait for the recorder too: no step unheard
         env = node_params(files_params, 'env_node')
         overrides['env_node']['wait_observation_nodes'] = ','.join(
-            [name for name in str(env.get('wait_observation_nodes', '')).split(',') if name]
-            + [RECORDER])
+            filter(None, (env.get('wait_observation_nodes', ''), RECORDER)))
         overrides['env_node']['wait_observation_subscribers'] = (
             int(env.get('wait_observation_subscribers', 2)) + 1)
         overrides['env_node']['wait_position_subscribers'] = (
