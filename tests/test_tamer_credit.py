@@ -12,7 +12,7 @@ from tamer_node.buffer import collate, FeedbackBuffer, Sample
 from tamer_node.config import TamerConfig
 from tamer_node.credit import effect_credit, NS_PER_S, spans_from_stamps, window_credit
 from tamer_node.history import holds, StepHistory
-from tamer_node.learner import Learner, mixture_mse
+from tamer_node.learner import excluded_mse, Learner, mixture_mse
 from tamer_node.model import Encoder, FEATURE_SIZE, HModel, joystick_parts, PartsHead
 from tamer_node.pairing import by_prediction, to_decisions
 from tamer_node.posterior import feedback_likelihood, posterior_weights
@@ -137,6 +137,39 @@ def test_the_mixture_loss_recovers_the_verdicts_that_per_step_regression_blurs()
     assert mixture[0] - max(mixture[1:]) > 1.0
     # Deep TAMER's: the good action takes its neighbours' verdicts, and hardly stands out.
     assert each[0] < 0.2 and each[0] - max(each[1:]) < 0.6
+
+
+# A positive verdict as a label on the policy (learner.excluded_mse, positive_excludes).
+def fit_one_good_verdict(positive_excludes, steps=300):
+    """Train on one +1 verdict for GOOD in one state; return H(s, .) after."""
+    torch.manual_seed(0)
+    model = HModel(freeze_encoder=True, encoder=Encoder(), num_actions=6)
+    learner = Learner(model, learning_rate=1e-2, alpha=0.0,
+                      positive_excludes=positive_excludes)
+    state = torch.randn(FEATURE_SIZE)
+    batch = collate([sample(GOOD % 6, 1.0, 1.0, 1, state=state)])
+    for _ in range(steps):
+        learner.train_step(batch)
+    with torch.no_grad():
+        return model.from_features(state.unsqueeze(0))[0].numpy()
+
+
+def test_a_good_verdict_also_teaches_that_the_other_actions_were_not_wanted():
+    others = [a for a in range(6) if a != GOOD % 6]
+    plain = fit_one_good_verdict(0.0)
+    implied = fit_one_good_verdict(1.0)
+    assert plain[GOOD % 6] == pytest.approx(1.0, abs=0.05)
+    assert implied[GOOD % 6] == pytest.approx(1.0, abs=0.05)
+    assert max(implied[others]) < -0.9  # each other action learned -1 from the one verdict
+    assert max(plain[others]) > -0.5  # without: an untried action keeps whatever H it had
+
+
+def test_a_bad_verdict_implies_nothing_about_the_other_actions():
+    batch = collate([sample(1, -1.0, 1.0, 1), sample(2, -1.0, 0.5, 2)])
+    assert excluded_mse(torch.zeros(2, 6), batch).item() == 0.0
+    batch = collate([sample(1, 1.0, 1.0, 1), sample(2, -1.0, 1.0, 2)])
+    # Only the positive row counts: its 5 other actions at 0 are each 1 from -1.
+    assert excluded_mse(torch.zeros(2, 6), batch).item() == pytest.approx(1.0)
 
 
 def test_a_feedback_with_one_step_is_the_plain_squared_error():

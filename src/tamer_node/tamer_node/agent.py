@@ -110,7 +110,7 @@ class TamerAgent:
         if config.initial_model:
             self._start_from(model, read_initial_model(config.initial_model, config.input_image))
         self.learner = Learner(model, config.learning_rate, config.alpha, config.max_grad_norm,
-                               config.credit_loss)
+                               config.credit_loss, config.positive_excludes)
         self.actor = ActingModel(model, config.greedy_margin, config.seed,
                                  config.keep_tied_action)
         self.slot = SnapshotSlot()

@@ -26,12 +26,31 @@ def mixture_mse(judged: torch.Tensor, h: torch.Tensor, weights: torch.Tensor,
     return ((mean - target)[used] ** 2).mean()
 
 
+def excluded_mse(predictions: torch.Tensor, batch: Batch) -> torch.Tensor:
+    """
+    Credit-weighted mean over positive rows of the other actions' squared distance to -1.
+
+    A verdict of +1 says the action judged is what the trainer wanted, so (as a label on the
+    policy, Griffith et al. 2013) mostly that the others were not: each positive sample also
+    teaches every other action of its state toward -1. Negative rows imply nothing.
+    """
+    positive = (batch.h > 0).to(predictions.dtype) * batch.weights
+    if not bool((positive > 0).any()):
+        return torch.zeros(())
+    others = torch.ones_like(predictions).scatter_(1, batch.actions.unsqueeze(1), 0.0)
+    per_row = ((predictions + 1.0) ** 2 * others).sum(1) / others.sum(1)
+    return (positive * per_row).sum() / positive.sum()
+
+
 class Learner:
     """Trains an ``HModel``; one thread at a time calls ``train_step`` (see learner_loop.py)."""
 
     def __init__(self, model: HModel, learning_rate: float = 3e-4, alpha: float = 1e-4,
-                 max_grad_norm: float = 1.0, credit_loss: str = 'each'):
+                 max_grad_norm: float = 1.0, credit_loss: str = 'each',
+                 positive_excludes: float = 0.0):
         self.model = model
+        self.positive_excludes = float(positive_excludes)
+        """Weight of the -1 a positive verdict implies for every other action (0: none)."""
         self.credit_loss = credit_loss
         """'each': every credited step regressed to h; 'mixture': their credit-weighted mean."""
         self.max_grad_norm = float(max_grad_norm)
@@ -60,6 +79,8 @@ class Learner:
             mse = mixture_mse(judged, batch.h, batch.weights, batch.groups)
         else:
             mse = (batch.weights * (judged - batch.h) ** 2).sum() / batch.weights.sum()
+        if self.positive_excludes > 0.0:
+            mse = mse + self.positive_excludes * excluded_mse(predictions, batch)
         rows = batch.has_companion
         if self.alpha == 0.0 or not bool(rows.any()):
             # Vanilla Deep TAMER: no saliency image is even run through the network.
