@@ -457,6 +457,23 @@ def test_checkpoint_round_trip(tmp_path):
         resumed.close()
 
 
+def test_the_verdict_memory_is_rebuilt_from_the_buffer_on_resume(tmp_path):
+    run = tmp_path / 'run'
+    agent = make_agent(run, verdict_memory=1.0)
+    feed(agent, 20)
+    assert processed(agent, 20)
+    remembered = len(agent.worker.memory)
+    agent.close()
+    resumed = make_agent(run, resume=True, verdict_memory=1.0)
+    try:
+        assert resumed.acting.memory is resumed.worker.memory
+        assert len(resumed.worker.memory) == remembered > 0
+        for sample in resumed.buffer.samples():
+            assert resumed.worker.memory.lookup(sample.state)[0, sample.action] > 0
+    finally:
+        resumed.close()
+
+
 def test_resume_replays_the_logged_feedback_newer_than_the_checkpoint(tmp_path):
     """Without any checkpoint, the whole log is replayed from the step journal."""
     run = tmp_path / 'run'

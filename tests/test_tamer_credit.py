@@ -13,6 +13,7 @@ from tamer_node.config import TamerConfig
 from tamer_node.credit import effect_credit, NS_PER_S, spans_from_stamps, window_credit
 from tamer_node.history import holds, StepHistory
 from tamer_node.learner import excluded_mse, Learner, mixture_mse
+from tamer_node.memory import VerdictMemory
 from tamer_node.model import Encoder, FEATURE_SIZE, HModel, joystick_parts, PartsHead
 from tamer_node.pairing import by_prediction, to_decisions
 from tamer_node.posterior import feedback_likelihood, posterior_weights
@@ -380,3 +381,43 @@ def test_shared_joystick_parts_carry_a_verdict_to_the_actions_that_share_them():
     model = HModel(parts=joystick_parts(range(NUM_ACTIONS)))
     assert isinstance(model.head[2], PartsHead) and model.from_features(
         torch.zeros(2, FEATURE_SIZE)).shape == (2, NUM_ACTIONS)
+
+
+# Verdicts remembered on exact states (memory.py).
+def test_the_memory_blends_remembered_verdicts_into_h_as_pseudo_counts():
+    memory = VerdictMemory(1.0, 6, capacity=2)
+    here, there = torch.zeros(FEATURE_SIZE), torch.ones(FEATURE_SIZE)
+    memory.add([sample(2, -1.0, 1.0, 1, state=here), sample(4, 1.0, 0.5, 2, state=here)])
+    blended = memory.blend(here.clone(), torch.zeros(6))
+    assert blended[2] == pytest.approx(-0.5)  # one verdict of -1 against H = 0: half way
+    assert blended[4] == pytest.approx(0.5 / 1.5)  # half a verdict (a window's share)
+    assert blended[[0, 1, 3, 5]].tolist() == [0.0] * 4  # untried: H alone
+    assert torch.equal(memory.blend(there, torch.zeros(6)), torch.zeros(6))  # another state
+    memory.add([sample(0, 1.0, 1.0, 3, state=there), sample(0, 1.0, 1.0, 4, state=2 * there)])
+    assert len(memory) == 2 and memory.lookup(here) is None  # the oldest state forgotten
+
+
+def act_again_after_a_bad_verdict(tmp_path: Path, **changes):
+    """Act on one frame, hear -1 on that step, act on the same frame again: both actions."""
+    frame = np.random.default_rng(3).integers(0, 256, (210, 160, 3), np.uint8)
+    config = TamerConfig(run_dir=str(tmp_path), pace_updates=0.0, checkpoint_period_s=0.0,
+                         update_rate_hz=0.0, immediate_update=False, **changes)
+    agent = TamerAgent(config, tmp_path, encoder=Encoder())  # H fixed: no update is taken
+    agent.start()
+    try:
+        first = agent.on_observation(66_666_667, frame)
+        agent.on_feedback(-1.0, 'stamped', 66_666_667)
+        deadline = time.monotonic() + 10
+        while not len(agent.buffer) and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert agent.learner.updates == 0
+        return first, agent.on_observation(133_333_334, frame)
+    finally:
+        agent.close()
+
+
+def test_an_action_judged_bad_in_this_very_state_is_not_taken_again(tmp_path):
+    first, second = act_again_after_a_bad_verdict(tmp_path / 'plain')
+    assert second == first  # H alone has not moved: the same greedy action
+    first, second = act_again_after_a_bad_verdict(tmp_path / 'memory', verdict_memory=1.0)
+    assert second != first

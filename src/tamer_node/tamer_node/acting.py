@@ -22,6 +22,7 @@ from attention_tasks.task import load_task
 import numpy as np
 from tamer_node.config import TamerConfig, WAITS_FOR_SALIENCY
 from tamer_node.history import holds, StepHistory
+from tamer_node.memory import VerdictMemory
 from tamer_node.model import HModel, preprocess, to_input
 from tamer_node.pairing import both_item
 from tamer_node.persistence import (
@@ -141,9 +142,12 @@ class ActingPath:
 
     def __init__(self, config: TamerConfig, actor: ActingModel, slot: SnapshotSlot,
                  history: StepHistory, journal: StepJournal, worker,
-                 counters: collections.Counter, log: Callable[[str, str], None]):
+                 counters: collections.Counter, log: Callable[[str, str], None],
+                 memory: Optional[VerdictMemory] = None):
         """``worker``: told of each observation stamp (``tick``) and image (``wake``)."""
         self.config = config
+        self.memory = memory
+        """Verdicts on exact states, blended into H before choosing (None: H alone)."""
         self.actor = actor
         self.slot = slot
         self.history = history
@@ -330,15 +334,20 @@ class ActingPath:
         held = self._held if holds(self._decision, record.stamp,
                                    self.config.decision_period_s) else None
         if self.config.input_image == 'both':  # the frame's features, then its saliency's
-            values = self.actor.values_on_features(  # each image encoded once, as learned
-                self._with_text(record, both_item(record, self.history, self.actor.model)))
+            state = self._with_text(  # each image encoded once, as learned
+                record, both_item(record, self.history, self.actor.model))
+            values = self.actor.values_on_features(state)
         elif self.actor.model.freeze_encoder:
             image = record.image(kind) if image is None else image
             features = self.actor.features(image)  # encoded once: acting and learning share it
             self.history.put_features(kind, record.stamp, features)
-            values = self.actor.values_on_features(self._with_text(record, features))
+            state = self._with_text(record, features)
+            values = self.actor.values_on_features(state)
         else:
-            values = self.actor.predict(record.image(kind) if image is None else image)
+            state = record.image(kind) if image is None else image
+            values = self.actor.predict(state)
+        if self.memory is not None:  # the verdicts on this very state (memory.py)
+            values = self.memory.blend(state, values)
         if held is not None and clearly_better(values, held, self.config.decision_switch_margin):
             self.counters['act/switched'] += 1
             held = None  # what H learned overrides the rest of the decision

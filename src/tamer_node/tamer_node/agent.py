@@ -41,6 +41,7 @@ from tamer_node.history import StepHistory
 from tamer_node.intake import FeedbackIntake
 from tamer_node.learner import Learner
 from tamer_node.learner_loop import LearnerWorker
+from tamer_node.memory import VerdictMemory
 from tamer_node.model import Encoder, FEATURE_SIZE, HModel, joystick_parts, load_encoder
 from tamer_node.persistence import DiskWriter, FeedbackLog, MetricsCsv, StepJournal
 import torch
@@ -131,12 +132,15 @@ class TamerAgent:
         # feedback is never written behind one (a key press waited 160 ms for it).
         self.checkpoint_disk = DiskWriter(self.journal, lambda text: self._log('error', text),
                                           name='tamer-checkpoint')
+        memory = (VerdictMemory(config.verdict_memory, self.task.num_actions,
+                                config.buffer_capacity) if config.verdict_memory > 0 else None)
         self.worker = LearnerWorker(config, self.learner, self.buffer, self.history, self.slot,
-                                    self.journal, self.checkpoint_disk, self.run_dir, self._log)
+                                    self.journal, self.checkpoint_disk, self.run_dir, self._log,
+                                    memory)
         # Every key exists from the start, so readers never see the dict change size.
         self.counters = collections.Counter(dict.fromkeys(AGENT_COUNTERS, 0))
         self.acting = ActingPath(config, self.actor, self.slot, self.history, self.journal,
-                                 self.worker, self.counters, self._log)
+                                 self.worker, self.counters, self._log, memory)
         self.intake = FeedbackIntake(config, self.counters, self.acting, self.journal,
                                      self.feedback_log, self.disk, self.worker.submit, self._log)
         # What the node and the benchmarks call: acting.py and intake.py say what each does.

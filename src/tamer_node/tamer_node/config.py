@@ -70,6 +70,10 @@ class TamerConfig:
     """Weight of the -1 a verdict of +1 implies for every other action of its state (a label
     on the policy: what the trainer wanted, so mostly not the others; learner.excluded_mse).
     0: each verdict teaches only the action judged (the thesis's and Deep TAMER's)."""
+    verdict_memory: float = 0.0
+    """Weight of the verdicts remembered for each exact state, blended into H when acting
+    (memory.py: pseudo-counts, so an action judged bad in this very state is not taken again
+    before the untried ones). 0: H alone (the thesis's)."""
     learning_rate: float = 3e-4
     """Adam step size of the learner (1e-3 with mostly -1 feedback killed the head's units)."""
     max_grad_norm: float = 1.0
@@ -238,6 +242,7 @@ class TamerConfig:
             'greedy_margin': 0.0 <= self.greedy_margin <= 2.0,
             'explore': 0.0 <= self.explore < 1.0,
             'positive_excludes': self.positive_excludes >= 0.0,
+            'verdict_memory': self.verdict_memory >= 0.0,
             'decision_period_s': self.decision_period_s >= 0.0,
             'decision_switch_margin': self.decision_switch_margin >= 0.0,
             'credit_noise': 0.0 <= self.credit_noise < 0.5,

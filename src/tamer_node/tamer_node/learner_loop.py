@@ -36,6 +36,7 @@ from tamer_node.delay_fit import DelayFit
 from tamer_node.events import FeedbackEvent, LEARNER_COUNTERS
 from tamer_node.history import StepHistory
 from tamer_node.learner import Learner
+from tamer_node.memory import VerdictMemory
 from tamer_node.pairing import pair, predict_judged, settled
 from tamer_node.persistence import DiskWriter, StepJournal
 from tamer_node.schedule import UpdateSchedule
@@ -46,9 +47,12 @@ class LearnerWorker(threading.Thread):
 
     def __init__(self, config: TamerConfig, learner: Learner, buffer: FeedbackBuffer,
                  history: StepHistory, slot: SnapshotSlot, journal: StepJournal,
-                 disk: DiskWriter, run_dir: Path, log: Callable[[str, str], None]):
+                 disk: DiskWriter, run_dir: Path, log: Callable[[str, str], None],
+                 memory: Optional[VerdictMemory] = None):
         super().__init__(name='tamer-learner', daemon=True)
         self.config = config
+        self.memory = memory
+        """The acting path's verdict memory, told of every sample added (None: off)."""
         self.learner = learner
         self.buffer = buffer
         self.history = history
@@ -277,6 +281,8 @@ class LearnerWorker(threading.Thread):
                 self.delays.observe([paired.delays[s.stamp] for s in paired.samples],
                                     [s.weight / total for s in paired.samples])
         self.buffer.extend(paired.samples)
+        if self.memory is not None:
+            self.memory.add(paired.samples)
         with self._lock:
             self.counters.update(paired.counts)
         self.applied_seq = max(self.applied_seq, event.seq)
@@ -332,6 +338,8 @@ class LearnerWorker(threading.Thread):
         sessions = journal_histories(journal_records, self.config.decision_period_s)
         if checkpoint is not None:
             missing = self.checkpoints.load(checkpoint, sessions)
+            if self.memory is not None:  # it summarises the buffer
+                self.memory.add(self.buffer.samples())
             with self._lock:
                 self.counters['resume/samples_without_images'] += missing
             self.counters.update({k: int(v) for k, v in checkpoint['counters'].items()
