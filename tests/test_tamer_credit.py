@@ -195,6 +195,13 @@ def test_the_mixture_learner_trains_on_whole_feedbacks():
         == [0, 1]
 
 
+def wait_for_samples(agent, seconds=10.0):
+    """Wait until the learner has turned a feedback into samples (or ``seconds`` passed)."""
+    deadline = time.monotonic() + seconds
+    while not len(agent.buffer) and time.monotonic() < deadline:
+        time.sleep(0.01)
+
+
 # Decisions held, ties kept.
 def play_actions(tmp_path: Path, **changes):
     frames = np.random.default_rng(0).integers(0, 256, (12, 210, 160, 3), np.uint8)
@@ -272,9 +279,7 @@ def test_with_held_decisions_late_credit_lands_on_the_steps_that_chose(tmp_path)
         for i, stamp in enumerate(stamps):
             agent.on_observation(stamp, frames[i % 4])
         agent.on_feedback(1.0, 'plain')
-        deadline = time.monotonic() + 10
-        while not len(agent.buffer) and time.monotonic() < deadline:
-            time.sleep(0.01)
+        wait_for_samples(agent)
         credited = agent.buffer.samples()
     finally:
         agent.close()
@@ -323,9 +328,7 @@ def test_the_agent_credits_a_plain_verdict_by_the_anchor_it_is_set_to(tmp_path):
             for i in range(12):
                 agent.on_observation((i + 1) * NS_PER_S, frames[i % 4])
             agent.on_feedback(1.0, 'plain')  # at 12 s, the newest observation's stamp
-            deadline = time.monotonic() + 10
-            while not len(agent.buffer) and time.monotonic() < deadline:
-                time.sleep(0.01)
+            wait_for_samples(agent)
             credited[anchor] = {s.stamp // NS_PER_S: s.weight for s in agent.buffer.samples()}
         finally:
             agent.close()
@@ -407,9 +410,7 @@ def act_again_after_a_bad_verdict(tmp_path: Path, **changes):
     try:
         first = agent.on_observation(66_666_667, frame)
         agent.on_feedback(-1.0, 'stamped', 66_666_667)
-        deadline = time.monotonic() + 10
-        while not len(agent.buffer) and time.monotonic() < deadline:
-            time.sleep(0.01)
+        wait_for_samples(agent)
         assert agent.learner.updates == 0
         return first, agent.on_observation(133_333_334, frame)
     finally:

@@ -62,13 +62,15 @@ class VerdictMemory:
 
     def blend(self, state: torch.Tensor, values: torch.Tensor) -> torch.Tensor:
         """Return H(s, .) blended with the verdicts remembered for this exact ``state``."""
-        sums = self.lookup(state)
-        if sums is None:
-            return values
-        mass = self.weight * sums[0]
-        return (values + self.weight * sums[1]) / (1.0 + mass)
+        key = state_key(state)
+        with self._lock:
+            sums = self._states.get(key)
+            if sums is None:
+                return values
+            return (values + self.weight * sums[1]) / (1.0 + self.weight * sums[0])
 
     def lookup(self, state: torch.Tensor) -> Optional[torch.Tensor]:
+        """Return a copy of the (2, actions) sums remembered for ``state``, or None."""
         with self._lock:
             sums = self._states.get(state_key(state))
             return None if sums is None else sums.clone()
