@@ -496,6 +496,10 @@ def test_task_doorkey_reaches_every_node_with_its_files_and_rate(tmp_path):
     assert plan.overrides['env_node']['rate_hz'] == REALTIME_HZ
     assert (plan.effective['tamer_node']['window_min_s'],
             plan.effective['tamer_node']['window_max_s']) == (0.2, 2.5)  # 1.5 s late + 1 step
+    for options in ({}, {'human_like': True}, {'synthetic': False}):  # issue 23's learner
+        learner = _plan(tmp_path, task='doorkey', **options).effective['tamer_node']
+        assert (learner['verdict_memory'], learner['positive_excludes']) == (1.0, 0.3)
+    assert _plan(tmp_path).effective['tamer_node'].get('verdict_memory', 0.0) == 0.0  # Room 1
     console = next(c for c in plan.commands if c.name == 'trainer_console')
     assert 'task:=doorkey' in console.argv
     assert 'doorkey-language-seed3' in _plan(tmp_path, task='doorkey', seed=3).run_dir.name

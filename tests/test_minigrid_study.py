@@ -102,6 +102,9 @@ def test_the_held_out_part_is_the_end_of_the_budget(tmp_path):
         heldout_after(10000, 1.0)
     spec = replace(specs.load('doorkey'), out=str(tmp_path), budget=10000)
     assert 'heldout_after: 7500' in engine.write_params(spec).read_text()
+    for name, memory in [('doorkey', 0.0), ('doorkey_every_step', 0.0), ('doorkey_memory', 1.0),
+                         ('doorkey_every_step_memory', 1.0)]:  # each the learner it ran with
+        assert specs.load(name).parameters['tamer_node']['verdict_memory'] == memory
     every_trial = engine.plan(spec, params=engine.write_params(spec))[0]
     assert every_trial and all(
         job.launcher_args[-2:] == ('--params-file', str(tmp_path / 'doorkey_study.yaml'))

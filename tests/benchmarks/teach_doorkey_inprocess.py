@@ -7,8 +7,8 @@ env_status) and judges the previous action; feedback without delay goes in stamp
 feedback plain (stamped by the agent on arrival with the newest step it saw: as in the graph, a
 verdict released when the teacher sees a step arrives after that step's observation; credited
 by its window). The settings are
-DoorKey's (``config/tasks/doorkey.yaml``: 8 x 8, four distractors, 100 steps an episode; the
-learner's 1.5 minibatch updates per step); the last ``--heldout`` steps are on held-out layouts.
+DoorKey's (8 x 8, four distractors, 100 steps an episode; the learner's parameters from
+``config/tasks/doorkey.yaml``: 1.5 minibatch updates per step, the verdict memory); the last ``--heldout`` steps are on held-out layouts.
 
 Run: ``.venv/bin/python tests/benchmarks/teach_doorkey_inprocess.py --seeds 100 101 --steps 10000
 [--human-like] [--set hold_steps=1 ...] [--out results.json]``.
@@ -21,14 +21,16 @@ import sys
 import tempfile
 import time
 
-from teach_inprocess import give, parse_value
+from teach_inprocess import learned_purity, parse_value
 
 
 def run_trial(seed: int, steps: int, heldout: int, human_like: bool, overrides: dict,
-              workdir: Path) -> dict:
+              workdir: Path, knobs: dict = None, stamped_late: bool = False) -> dict:
+    from attention_bringup.graph import task_file
+    from attention_bringup.params import load_params_file, node_params
     from attention_bringup.plan import human_like_window_s
     from attention_tasks.doorkey.env import DoorKeyEnv, DoorKeyEnvConfig
-    from attention_tasks.gridworld import STEP_S
+    from attention_tasks.gridworld import ACTION_NAMES, STEP_S
     from env_node.status import Counters, parse_status, status_values
     from feedback_node.human_like import HUMAN_LIKE_SETTING
     from feedback_node.judging import TeacherConfig
@@ -37,12 +39,16 @@ def run_trial(seed: int, steps: int, heldout: int, human_like: bool, overrides: 
     from tamer_node.config import TamerConfig
 
     share_the_cpu()
-    knobs = vars(HUMAN_LIKE_SETTING) if human_like else {}
+    knobs = dict(vars(HUMAN_LIKE_SETTING) if human_like else {}, **(knobs or {}))
     teacher = TaskTeacher(load_knowledge('doorkey'), 6,
                           TeacherConfig(utterance_interval=-1.0, seed=seed, **knobs))
-    config = {'task': 'doorkey', 'seed': seed, 'alpha': 0.0, 'update_rate_hz': 1.5,
-              'greedy_margin': 0.1, 'credit': 'window' if human_like else 'step'}
-    if human_like:
+    task_params = node_params(load_params_file(task_file('doorkey')), 'tamer_node')
+    task_params.pop('task', None)
+    config = {'task': 'doorkey', 'seed': seed, 'alpha': 0.0, 'greedy_margin': 0.1,
+              **task_params}  # the task file's learner (update rate, memory)
+    late = teacher.config.delayed and not stamped_late
+    config['credit'] = 'window' if late else 'step'
+    if late:
         config['window_min_s'], config['window_max_s'] = human_like_window_s(STEP_S)
     config.update(overrides)
     run_dir = workdir / f'seed{seed}'
@@ -57,12 +63,23 @@ def run_trial(seed: int, steps: int, heldout: int, human_like: bool, overrides: 
         return teacher.on_step(teacher.see(step.sim_time_ns, values)).feedback
 
     episodes = []  # (held out, solved, sub-goals)
+    acted = {}  # stamp -> the agent's action
+    late_actions = [0] * 6  # the actions of the held-out part
+    judged_plain = []  # per late feedback, in the order sent (its seq - 1): (stamp, action)
     started = time.monotonic()
     step = env.reset()
     due = see(step)
     for _ in range(steps):
         action = agent.on_observation(step.sim_time_ns, step.observation)
-        give(agent, due, human_like)  # released as this step showed, heard after it (the graph)
+        acted[step.sim_time_ns] = action
+        if len(acted) > steps - heldout:
+            late_actions[action] += 1
+        for judgement in due:  # released as this step showed, heard after it (the graph)
+            if late:
+                agent.on_feedback(judgement.h, 'plain')
+                judged_plain.append((judgement.stamp_ns, judgement.action))
+            else:
+                agent.on_feedback(judgement.h, 'stamped', judgement.stamp_ns)
         step = env.step(action)
         due = see(step)
         if step.done:
@@ -73,6 +90,7 @@ def run_trial(seed: int, steps: int, heldout: int, human_like: bool, overrides: 
             due += see(step)  # due now, late: sent as the new layout shows
     metrics = agent.metrics()
     agent.close()
+    learned = learned_purity(agent.buffer, judged_plain, acted)
     env.close()
     held = [e for e in episodes if e[0]]
     return {'seed': seed, 'episodes': len(episodes), 'heldout_episodes': len(held),
@@ -81,7 +99,8 @@ def run_trial(seed: int, steps: int, heldout: int, human_like: bool, overrides: 
             'training_solved': sum(e[1] for e in episodes if not e[0]),
             'agreement': teacher.counts['agreed'] / max(teacher.counts['judged'], 1),
             'updates_per_step': metrics['train/updates_per_step'],
-            'wall_s': time.monotonic() - started}
+            'heldout_actions': dict(zip(ACTION_NAMES, late_actions)),
+            'wall_s': time.monotonic() - started, **learned}
 
 
 def main(argv=None) -> int:
@@ -91,17 +110,22 @@ def main(argv=None) -> int:
     parser.add_argument('--heldout', type=int, default=2500,
                         help='the last steps, on held-out layouts')
     parser.add_argument('--human-like', action='store_true')
+    parser.add_argument('--stamped-late', action='store_true',
+                        help='late feedback that carries its step\'s stamp (a diagnostic)')
+    parser.add_argument('--knob', action='append', default=[], metavar='NAME=VALUE',
+                        help='a human-like knob of the teacher (repeatable)')
     parser.add_argument('--set', action='append', default=[], metavar='NAME=VALUE',
                         help='a TamerConfig field (repeatable)')
     parser.add_argument('--what', default='')
     parser.add_argument('--out', type=Path, default=None)
     args = parser.parse_args(argv)
     overrides = {item.split('=', 1)[0]: parse_value(item.split('=', 1)[1]) for item in args.set}
+    knobs = {item.split('=', 1)[0]: parse_value(item.split('=', 1)[1]) for item in args.knob}
     results = []
     with tempfile.TemporaryDirectory() as workdir:
         for seed in args.seeds:
             result = run_trial(seed, args.steps, args.heldout, args.human_like, overrides,
-                               Path(workdir))
+                               Path(workdir), knobs, args.stamped_late)
             results.append(result)
             print(json.dumps(result), flush=True)
     held = sum(r['heldout_episodes'] for r in results)
@@ -109,7 +133,8 @@ def main(argv=None) -> int:
     print(f'held-out solved {solved} of {held}; overrides {overrides}')
     if args.out:
         args.out.write_text(json.dumps({'what': args.what, 'argv': sys.argv[1:],
-                                        'overrides': overrides, 'human_like': args.human_like,
+                                        'overrides': overrides, 'knobs': knobs,
+                                        'stamped_late': args.stamped_late, 'human_like': args.human_like,
                                         'results': results}, indent=1))
     return 0
 
