@@ -11,7 +11,7 @@ from attention_bringup.params import (
     dump_params, load_params_file, merge_params, node_params, ParamsFileError, parse_params)
 from attention_bringup.plan import (
     build_plan, Continuation, DEFAULT_STEPS, LATE_FEEDBACK_LEARNER, LaunchOptions, parse_options,
-    REALTIME_RATE_HZ, TEACHING_GREEDY_MARGIN)
+    PRESS_TIMES_CREDIT, REALTIME_RATE_HZ, TEACHING_GREEDY_MARGIN)
 from attention_bringup.progress import (
     ALIVE_STEPS, format_bar, parse_value, ProgressTracker, RECENT_ROWS, RECENT_STAMPS)
 from attention_bringup.report import ProgressWriter, read_rows_for_plot
@@ -500,6 +500,16 @@ def test_task_doorkey_reaches_every_node_with_its_files_and_rate(tmp_path):
         learner = _plan(tmp_path, task='doorkey', **options).effective['tamer_node']
         assert (learner['verdict_memory'], learner['positive_excludes']) == (1.0, 0.3)
     assert _plan(tmp_path).effective['tamer_node'].get('verdict_memory', 0.0) == 0.0  # Room 1
+    # --press-times: late verdicts carry the moment given; credited from then, one window.
+    pressed = _plan(tmp_path, task='doorkey', human_like=True, press_times=True).effective
+    assert pressed['feedback_node']['press_times'] is True
+    assert {k: pressed['tamer_node'][k] for k in PRESS_TIMES_CREDIT} == {
+        'credit_anchor': 'effect', 'window_min_s': 0.2, 'window_max_s': 1.6}
+    assert 'press_times' not in _plan(tmp_path, task='doorkey', human_like=True).overrides[
+        'feedback_node']
+    assert parse_options(['--human-like', '--press-times']).press_times
+    with pytest.raises(ValueError, match='add --human-like'):
+        _plan(tmp_path, press_times=True)
     console = next(c for c in plan.commands if c.name == 'trainer_console')
     assert 'task:=doorkey' in console.argv
     assert 'doorkey-language-seed3' in _plan(tmp_path, task='doorkey', seed=3).run_dir.name

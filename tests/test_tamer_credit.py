@@ -314,28 +314,45 @@ def test_the_step_on_screen_has_shown_no_effect_yet():
         effect_credit(spans, 3 * NS_PER_S, 1.0, 1.0)
 
 
+def credit_one_verdict(run: Path, steps: int, source: str, press_s=None, **changes):
+    """Return {step (s): weight} of one +1 given after ``steps`` 1 s grid steps."""
+    frames = np.random.default_rng(2).integers(0, 256, (steps, 210, 160, 3), np.uint8)
+    config = TamerConfig(run_dir=str(run), credit='window', pace_updates=0.0,
+                         checkpoint_period_s=0.0, update_rate_hz=0.0, **changes)
+    agent = TamerAgent(config, run, encoder=Encoder())
+    agent.start()
+    try:
+        for i in range(steps):
+            agent.on_observation((i + 1) * NS_PER_S, frames[i])
+        event = agent.on_feedback(1.0, source, None if press_s is None
+                                  else int(press_s * NS_PER_S))
+        assert event.stamp == steps * NS_PER_S  # attributed on arrival: the newest step
+        wait_for_samples(agent)
+        return {s.stamp // NS_PER_S: s.weight for s in agent.buffer.samples()}
+    finally:
+        agent.close()
+
+
 def test_the_agent_credits_a_plain_verdict_by_the_anchor_it_is_set_to(tmp_path):
-    frames = np.random.default_rng(2).integers(0, 256, (4, 210, 160, 3), np.uint8)
-    credited = {}
-    for anchor in ('span', 'effect'):
-        run = tmp_path / anchor
-        config = TamerConfig(run_dir=str(run), credit='window', credit_anchor=anchor,
-                             window_min_s=0.2, window_max_s=2.5, pace_updates=0.0,
-                             checkpoint_period_s=0.0, update_rate_hz=0.0)
-        agent = TamerAgent(config, run, encoder=Encoder())
-        agent.start()
-        try:
-            for i in range(12):
-                agent.on_observation((i + 1) * NS_PER_S, frames[i % 4])
-            agent.on_feedback(1.0, 'plain')  # at 12 s, the newest observation's stamp
-            wait_for_samples(agent)
-            credited[anchor] = {s.stamp // NS_PER_S: s.weight for s in agent.buffer.samples()}
-        finally:
-            agent.close()
+    credited = {anchor: credit_one_verdict(tmp_path / anchor, 12, 'plain', credit_anchor=anchor,
+                                           window_min_s=0.2, window_max_s=2.5)
+                for anchor in ('span', 'effect')}  # at 12 s, the newest observation's stamp
     assert credited['effect'] == pytest.approx({9: 0.5, 10: 0.5})
     assert set(credited['span']) == {9, 10, 11}
     with pytest.raises(ValueError, match='credit_anchor'):
         TamerConfig(credit_anchor='press').validate()
+
+
+def test_a_verdict_that_carries_its_press_time_lands_on_the_step_it_judged(tmp_path):
+    # Steps of 1 s at 1..6 s. The trainer judged the step at 3 s, whose result showed at 4 s,
+    # and pressed 1.1 s later, at 5.1 s; the learner hears it once the step at 6 s is shown.
+    # From the newest observation (6 s) a 0.2-1.6 s delay after a result points at the step
+    # at 4 s (result at 5 s): wrong. From the press (5.1 s) it points at 3 s alone.
+    credited = {source: credit_one_verdict(tmp_path / source, 6, source, 5.1,
+                                           credit_anchor='effect', window_min_s=0.2,
+                                           window_max_s=1.6)
+                for source in ('plain', 'pressed')}
+    assert credited == {'plain': {4: 1.0}, 'pressed': {3: 1.0}}
 
 
 def test_a_resume_finds_the_decisions_the_acting_path_made():

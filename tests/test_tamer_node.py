@@ -311,6 +311,37 @@ def test_every_logged_feedback_and_utterance_gets_a_receipt(probe, start_node, t
     assert node.stop() == 0
 
 
+def test_a_pressed_verdict_is_credited_from_the_moment_it_was_given(
+        probe, start_node, tmp_path, frames):
+    # Grid steps of 1 s at 1..6 s; the verdict on the step at 3 s (result shown at 4 s) was
+    # given at 5.1 s. From the press, a 0.2-1.6 s delay after a result credits the step at
+    # 3 s; from the newest observation (6 s) it would credit the step at 4 s.
+    run_dir = tmp_path / 'run'
+    node = start_node('tamer_node', {'run_dir': str(run_dir), 'credit': 'window',
+                                     'credit_anchor': 'effect', 'window_min_s': 0.2,
+                                     'window_max_s': 1.6, 'update_rate_hz': 0.0})
+    graph = Graph(probe)
+    pressed = probe.publisher(Vector3Stamped, topics.FEEDBACK_PRESSED, qos.HUMAN)
+    credit = probe.subscribe(DiagnosticArray, topics.FEEDBACK_CREDIT, qos.HUMAN)
+    graph.wait_connected(node)
+    assert wait_until(lambda: pressed.get_subscription_count() >= 1, 30.0)
+    assert probe.wait_for_publishers(topics.FEEDBACK_CREDIT, timeout=30.0)
+    for i in range(6):
+        graph.step(frames[i % len(frames)], (i + 1) * 1_000_000_000)
+    msg = Vector3Stamped()
+    msg.header.stamp = ns_to_stamp(5_100_000_000)
+    msg.vector.x = 1.0
+    pressed.publish(msg)
+    assert credit.wait_count(1, 20.0), node.log_text()[-2000:]
+    [line] = [json.loads(line) for line in (run_dir / 'feedback_log.jsonl').read_text()
+              .splitlines() if json.loads(line)['kind'] == 'feedback']
+    assert (line['source'], line['now_ns'], line['stamp_ns']) == (
+        'pressed', 5_100_000_000, 6_000_000_000)
+    values = {kv.key: kv.value for kv in credit.snapshot()[0].status[0].values}
+    assert [key for key in values if key.isdigit()] == ['3000000000'], values
+    assert node.stop() == 0
+
+
 def test_it_says_what_it_made_of_each_step_and_each_feedback(
         probe, start_node, tmp_path, frames):
     """action_values: H of every action and the action taken; feedback_credit: the steps."""

@@ -139,11 +139,16 @@ def test_delayed_feedback_is_released_between_0_3_and_1_5_s_after_it_was_seen():
     teacher = room_one_teacher(TeacherConfig(utterance_interval=-1.0, feedback_delay_min=0.3,
                                              feedback_delay_max=1.5))
     teacher.on_step(seen(0, 77, 235, action=-1))
-    lags = []
+    lags, presses = [], []
     for t in range(1, 400):
         out = teacher.on_step(seen(t, 77, 231, action=A['DOWN'], pose=10))
         lags += [t * NS - f.seen_ns for f in out.feedback]
+        presses += [(f.pressed_ns - f.seen_ns, t * NS - f.pressed_ns) for f in out.feedback]
     assert lags and min(lags) >= 0.3e9 and max(lags) < 1.5e9 + NS
+    # Each carries the moment it was given: its own delay after the step seen, before release.
+    delays = [delay for delay, _ in presses]
+    assert min(delays) >= 0.3e9 and max(delays) <= 1.5e9 and len(set(delays)) > 10
+    assert all(0 <= waited < NS for _, waited in presses)
 
 
 def test_speaks_the_sentence_of_the_stage_it_is_in_at_the_interval():

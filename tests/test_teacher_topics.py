@@ -132,3 +132,26 @@ def test_late_feedback_is_plain_only(probe, start_node):
     assert {m.data for m in plain.snapshot()} == {-1.0, 1.0}
     assert teacher.wait_for_log('plain feedback only', 1.0)
     assert teacher.stop(signal.SIGINT) == 0
+
+
+def test_late_feedback_with_press_times_carries_the_moment_it_was_given(probe, start_node):
+    pressed = probe.subscribe(Vector3Stamped, topics.FEEDBACK_PRESSED, qos.HUMAN)
+    player, teacher, stamped, plain, _ = start_graph(
+        probe, start_node, {'utterance_interval': -1.0, 'feedback_delay_min': 0.3,
+                            'feedback_delay_max': 0.6, 'press_times': True})
+    player.play(80)
+    assert pressed.wait_count(30, REPLY_S), teacher.log_text()[-3000:]
+    assert stamped.snapshot() == [] and plain.snapshot() == []  # no stamp, no plain copy
+    steps = sorted(player.played)
+    for msg in pressed.snapshot():
+        moment = stamp_to_ns(msg.header.stamp)
+        assert moment not in player.played  # a moment between steps, not a step's stamp
+        # Some step T, seen done at the next step T', was judged 0.3-0.6 s after T': its
+        # action is the one the verdict names, with the sign the player's choice deserves.
+        judged = [(t, player.played[t]) for t, seen in zip(steps, steps[1:])
+                  if 0.3e9 - 1 <= moment - seen <= 0.6e9 + 1]
+        assert any(int(msg.vector.z) == action and int(msg.vector.y) == expert
+                   and msg.vector.x == (-1.0 if wrong else 1.0)
+                   for _, (action, expert, wrong) in judged), (moment, msg.vector)
+    assert teacher.wait_for_log('feedback_pressed with the moment given', 1.0)
+    assert teacher.stop(signal.SIGINT) == 0

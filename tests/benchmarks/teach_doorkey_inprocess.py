@@ -6,9 +6,12 @@ acts on the observation, the env steps, the teacher sees the step's status value
 env_status) and judges the previous action; feedback without delay goes in stamped, late
 feedback plain (stamped by the agent on arrival with the newest step it saw: as in the graph, a
 verdict released when the teacher sees a step arrives after that step's observation; credited
-by its window). The settings are
-DoorKey's (8 x 8, four distractors, 100 steps an episode; the learner's parameters from
-``config/tasks/doorkey.yaml``: 1.5 minibatch updates per step, the verdict memory); the last ``--heldout`` steps are on held-out layouts.
+by its window), or with ``--press-times`` carrying the moment it was given (source 'pressed').
+The settings are DoorKey's (8 x 8, four distractors, 100 steps an episode; the learner's
+parameters from ``config/tasks/doorkey.yaml``: 1.5 minibatch updates per step, the verdict
+memory); the last ``--heldout`` steps are on held-out layouts. ``--knob`` sets one human-like
+knob of the teacher (``feedback_probability=0.33``: sparse alone), ``--stamped-late`` stamps
+late verdicts with the step they judge (a diagnostic: attribution perfect).
 
 Run: ``.venv/bin/python tests/benchmarks/teach_doorkey_inprocess.py --seeds 100 101 --steps 10000
 [--human-like] [--set hold_steps=1 ...] [--out results.json]``.
@@ -25,10 +28,11 @@ from teach_inprocess import learned_purity, parse_value
 
 
 def run_trial(seed: int, steps: int, heldout: int, human_like: bool, overrides: dict,
-              workdir: Path, knobs: dict = None, stamped_late: bool = False) -> dict:
+              workdir: Path, knobs: dict = None, stamped_late: bool = False,
+              press_times: bool = False) -> dict:
     from attention_bringup.graph import task_file
     from attention_bringup.params import load_params_file, node_params
-    from attention_bringup.plan import human_like_window_s
+    from attention_bringup.plan import human_like_window_s, PRESS_TIMES_CREDIT
     from attention_tasks.doorkey.env import DoorKeyEnv, DoorKeyEnvConfig
     from attention_tasks.gridworld import ACTION_NAMES, STEP_S
     from env_node.status import Counters, parse_status, status_values
@@ -50,6 +54,8 @@ def run_trial(seed: int, steps: int, heldout: int, human_like: bool, overrides: 
     config['credit'] = 'window' if late else 'step'
     if late:
         config['window_min_s'], config['window_max_s'] = human_like_window_s(STEP_S)
+    if late and press_times:  # as attention_train --human-like --press-times sets it
+        config.update(PRESS_TIMES_CREDIT)
     config.update(overrides)
     run_dir = workdir / f'seed{seed}'
     agent = TamerAgent(TamerConfig(run_dir=str(run_dir), **config), run_dir)
@@ -75,7 +81,10 @@ def run_trial(seed: int, steps: int, heldout: int, human_like: bool, overrides: 
         if len(acted) > steps - heldout:
             late_actions[action] += 1
         for judgement in due:  # released as this step showed, heard after it (the graph)
-            if late:
+            if late and press_times:  # when it was given, not the step it judges
+                agent.on_feedback(judgement.h, 'pressed', judgement.pressed_ns)
+                judged_plain.append((judgement.stamp_ns, judgement.action))
+            elif late:
                 agent.on_feedback(judgement.h, 'plain')
                 judged_plain.append((judgement.stamp_ns, judgement.action))
             else:
@@ -111,7 +120,9 @@ def main(argv=None) -> int:
                         help='the last steps, on held-out layouts')
     parser.add_argument('--human-like', action='store_true')
     parser.add_argument('--stamped-late', action='store_true',
-                        help='late feedback that carries its step\'s stamp (a diagnostic)')
+                        help="late feedback that carries its step's stamp (a diagnostic)")
+    parser.add_argument('--press-times', action='store_true',
+                        help='late feedback carries the moment it was given (source pressed)')
     parser.add_argument('--knob', action='append', default=[], metavar='NAME=VALUE',
                         help='a human-like knob of the teacher (repeatable)')
     parser.add_argument('--set', action='append', default=[], metavar='NAME=VALUE',
@@ -125,7 +136,8 @@ def main(argv=None) -> int:
     with tempfile.TemporaryDirectory() as workdir:
         for seed in args.seeds:
             result = run_trial(seed, args.steps, args.heldout, args.human_like, overrides,
-                               Path(workdir), knobs, args.stamped_late)
+                               Path(workdir), knobs, args.stamped_late,
+                               args.press_times)
             results.append(result)
             print(json.dumps(result), flush=True)
     held = sum(r['heldout_episodes'] for r in results)
@@ -134,7 +146,9 @@ def main(argv=None) -> int:
     if args.out:
         args.out.write_text(json.dumps({'what': args.what, 'argv': sys.argv[1:],
                                         'overrides': overrides, 'knobs': knobs,
-                                        'stamped_late': args.stamped_late, 'human_like': args.human_like,
+                                        'stamped_late': args.stamped_late,
+                                        'press_times': args.press_times,
+                                        'human_like': args.human_like,
                                         'results': results}, indent=1))
     return 0
 

@@ -38,7 +38,7 @@ SUBSCRIPTION_PERIOD_S = 0.1
 
 COUNTED_TOPICS = (
     topics.ENV_STATUS, topics.UTTERANCE, topics.UTTERANCE_STAMPED, topics.FEEDBACK,
-    topics.FEEDBACK_STAMPED, topics.SALIENCY, topics.METRICS,
+    topics.FEEDBACK_STAMPED, topics.FEEDBACK_PRESSED, topics.SALIENCY, topics.METRICS,
 )
 """Topics the launcher hears whole and counts (the gallery's images come and go)."""
 PLAIN_TOPICS = (topics.FEEDBACK, topics.UTTERANCE)
@@ -73,6 +73,7 @@ class GraphMonitor(Node):
         self._status_subscription = sub(
             DiagnosticArray, topics.ENV_STATUS, self._on_env_status, qos.WATCH_STEPS)
         sub(Vector3Stamped, topics.FEEDBACK_STAMPED, self._on_feedback_stamped, qos.WATCH_STEPS)
+        sub(Vector3Stamped, topics.FEEDBACK_PRESSED, self._on_feedback_pressed, qos.WATCH_STEPS)
         sub(DiagnosticArray, topics.UTTERANCE_STAMPED, self._on_utterance_stamped, qos.WATCH_STEPS)
         if watch_plain:
             sub(Float32, topics.FEEDBACK, self._on_feedback, qos.WATCH_STEPS)
@@ -147,6 +148,12 @@ class GraphMonitor(Node):
     def _on_feedback_stamped(self, msg: Vector3Stamped) -> None:
         with self.lock:
             self._count(topics.FEEDBACK_STAMPED)
+            self.tracker.counters.feedback += 1
+            self.tracker.counters.feedback_sum += float(msg.vector.x)
+
+    def _on_feedback_pressed(self, msg: Vector3Stamped) -> None:
+        with self.lock:
+            self._count(topics.FEEDBACK_PRESSED)
             self.tracker.counters.feedback += 1
             self.tracker.counters.feedback_sum += float(msg.vector.x)
 

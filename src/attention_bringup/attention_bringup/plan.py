@@ -69,6 +69,12 @@ def human_like_window_s(step_s: float) -> tuple:
     return (0.2, round(HUMAN_LIKE_SETTING.feedback_delay_max + step_s, 1))
 
 
+PRESS_TIMES_CREDIT = {'credit_anchor': 'effect', 'window_min_s': 0.2,
+                      'window_max_s': round(HUMAN_LIKE_SETTING.feedback_delay_max + 0.1, 1)}
+"""tamer_node's credit with ``--press-times``: a verdict's delay counted from the moment it was
+given back to when the judged step's result showed, which is the teacher's own delay (0.3-1.5 s),
+whatever the step's length (DoorKey's 1 s steps no longer widen the window to 2.5 s)."""
+
 HUMAN_LIKE_WINDOW_S = human_like_window_s(1.0 / REALTIME_RATE_HZ)
 """tamer_node ``window_min_s``, ``window_max_s`` with ``--human-like`` in Room 1: the credit window
 of a learner that knows how late its trainer is. The teacher speaks 0.3-1.5 s after it sees the
@@ -109,6 +115,9 @@ class LaunchOptions:
     """Keep the thesis's learner with the teacher (no ``greedy_margin``)."""
     late_learner: bool = False
     """With late feedback, the learner for late feedback (``LATE_FEEDBACK_LEARNER``)."""
+    press_times: bool = False
+    """With ``human_like``: each late verdict carries the moment it was given
+    (``feedback_pressed``), credited from then (``PRESS_TIMES_CREDIT``)."""
     resume: Optional[str] = None
     """A run folder whose nodes were killed: continue it with its own options."""
     domain: Optional[int] = None
@@ -222,6 +231,11 @@ def argument_parser() -> argparse.ArgumentParser:
                         help='with late feedback (--human-like, a person): decisions of 0.2 s '
                              'credited on the step that chose, the mixture loss and ties kept '
                              "instead of Deep TAMER's plain window (docs/teaching.md)")
+    parser.add_argument('--press-times', dest='press_times', action='store_true',
+                        help='with --human-like: each late verdict carries the moment the teacher '
+                             'gave it (topic feedback_pressed), and the tamer credits it from '
+                             'then (effect anchor, window 0.2-1.6 s), still not told the step '
+                             'it judges')
     parser.add_argument('--domain', type=domain_id, default=None, metavar='ID',
                         help='ROS_DOMAIN_ID of the graph, to join it from another shell (default: '
                              'ROS_DOMAIN_ID if set, else a free domain reserved for the run)')
@@ -360,6 +374,9 @@ def launcher_overrides(options: LaunchOptions, seed: int, run_dir: Path,
         overrides['tamer_node']['credit'] = 'window'  # late and plain: the window attributes it
         overrides['tamer_node']['window_min_s'], overrides['tamer_node']['window_max_s'] = (
             human_like_window_s(1.0 / task.realtime_hz))
+        if options.press_times:
+            overrides['feedback_node']['press_times'] = True
+            overrides['tamer_node'].update(PRESS_TIMES_CREDIT)
     if not options.synthetic:
         overrides['feedback_node']['synthetic'] = False
         overrides['tamer_node']['credit'] = 'window'  # a person's feedback comes late
@@ -434,6 +451,9 @@ def build_plan(options: LaunchOptions, bin_dir: Path, cwd: Path,
     if options.trainer == 'thesis' and options.task != DEFAULT_TASK:
         raise ValueError(f"--trainer thesis measures Room 1's critical positions; task "
                          f'{options.task} is taught by the teacher (--trainer teacher)')
+    if options.press_times and not options.human_like:
+        raise ValueError('--press-times is how the human-like teacher gives its late verdicts: '
+                         'add --human-like')
     if continuation.steps_done >= options.steps:
         raise ValueError(f'the run has done its {options.steps} steps already: nothing to '
                          'resume')

@@ -18,6 +18,9 @@ UTTERANCE = 'utterance'              # std_msgs/String, feedback node or a perso
 UTTERANCE_STAMPED = 'utterance_stamped'  # diagnostic_msgs/DiagnosticArray, synthetic trainer
 FEEDBACK = 'feedback'                # std_msgs/Float32 scalar h, feedback node or a person
 FEEDBACK_STAMPED = 'feedback_stamped'    # geometry_msgs/Vector3Stamped, synthetic trainer
+# geometry_msgs/Vector3Stamped, x = h, header = the moment it was given (simulation time), not
+# the step judged: a late trainer's press (feedback_node press_times)
+FEEDBACK_PRESSED = 'feedback_pressed'
 # diagnostic_msgs/DiagnosticArray, latched: how far the synthetic trainer got (the newest step
 # judged from, what it gave, what it holds, its counts); the launcher's end waits on it
 TRAINER_STATUS = 'trainer_status'

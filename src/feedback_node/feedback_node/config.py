@@ -34,6 +34,11 @@ class FeedbackConfig(TrainerConfig):
     """true: publish every stamped feedback on the plain feedback topic too (the learner logs
     such a copy as a duplicate); false: only the late teacher, which has no stamp to give, uses
     the plain topic."""
+    press_times: bool = False
+    """true: the late teacher publishes each verdict on ``feedback_pressed`` with the moment it
+    gave it (simulation time) instead of plain on ``feedback``, and the learner credits it from
+    that moment (as a console that times a person's key press could; ``ros2 topic pub`` cannot).
+    Still no stamp of the step judged."""
     wait_feedback_subscribers: int = 1
     """Judgements are held (in order, with their stamps) until the feedback topic has this many
     matched subscribers: a volatile topic gives a message only to readers matched when it is

@@ -13,7 +13,7 @@ from typing import Dict, List, Tuple, TypeVar
 from attention_common.stamps import NS_PER_S
 import numpy as np
 
-F = TypeVar('F')  # a feedback NamedTuple with stamp_ns, h, seen_ns and flipped
+F = TypeVar('F')  # a feedback NamedTuple with stamp_ns, h, seen_ns, flipped and pressed_ns
 
 
 @dataclass
@@ -82,6 +82,7 @@ class FeedbackScheduler:
         if knobs.feedback_delay_max > knobs.feedback_delay_min:
             delay_s = self._rng.uniform(knobs.feedback_delay_min, knobs.feedback_delay_max)
         due_ns = feedback.seen_ns + int(round(delay_s * NS_PER_S))
+        feedback = feedback._replace(pressed_ns=due_ns)
         heapq.heappush(self._pending, (due_ns, self._sequence, feedback))
         self._sequence += 1
 

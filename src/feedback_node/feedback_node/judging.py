@@ -49,6 +49,8 @@ class Judgement(NamedTuple):
     seen_ns: int
     """The step at which the action was seen done (the next step)."""
     flipped: bool = False
+    pressed_ns: int = 0
+    """When it is given (simulation ns): ``seen_ns`` plus the human-like delay."""
 
 
 class TeacherOutput(NamedTuple):

@@ -8,8 +8,9 @@ task).
 
 Subscribes ``agent_position``. With ``synthetic`` true, for every position (step T') it
 publishes the feedback judging the action of the previous step T (``feedback_stamped``, stamp
-T; the plain ``feedback`` only with ``plain_copies`` or when the teacher is late) and, when one
-is due, the utterance said at T' (``utterance_stamped``, stamp T', then the plain
+T; the plain ``feedback`` only with ``plain_copies`` or when the teacher is late, or with
+``press_times`` a late verdict on ``feedback_pressed``, stamped with the moment given) and,
+when one is due, the utterance said at T' (``utterance_stamped``, stamp T', then the plain
 ``utterance``). With ``synthetic`` false it
 publishes nothing and logs what a person says on ``utterance`` and ``feedback``; bad input gets
 a clear error line and is counted. ``synthetic`` can be switched at run time
@@ -60,6 +61,7 @@ class FeedbackNode(Node):
             raise StartupError(str(error)) from None
         self._synthetic = config.synthetic
         self._plain_copies = config.plain_copies
+        self._press_times = config.press_times
         self._wait_subscribers = config.wait_feedback_subscribers
         self._wait_listeners = config.wait_utterance_subscribers
         self._now_ns = None  # the newest step stamp heard: this node's "now"
@@ -71,6 +73,8 @@ class FeedbackNode(Node):
         self._feedback_stamped_pub = self.create_publisher(
             Vector3Stamped, topics.FEEDBACK_STAMPED, qos.HUMAN)
         self._feedback_pub = self.create_publisher(Float32, topics.FEEDBACK, qos.HUMAN)
+        self._feedback_pressed_pub = self.create_publisher(
+            Vector3Stamped, topics.FEEDBACK_PRESSED, qos.HUMAN)
         self._utterance_stamped_pub = self.create_publisher(
             DiagnosticArray, topics.UTTERANCE_STAMPED, qos.HUMAN)
         self._utterance_pub = self.create_publisher(String, topics.UTTERANCE, qos.HUMAN)
@@ -106,7 +110,9 @@ class FeedbackNode(Node):
                  f'delay {c.feedback_delay_min:g}-{c.feedback_delay_max:g} s, '
                  f'noise {c.feedback_noise:g}')
         if self._kind == 'teacher':
-            plain = ' (plain feedback only: it comes late)' if c.delayed else ''
+            plain = ((' (on feedback_pressed with the moment given: it comes late)'
+                      if self._press_times else ' (plain feedback only: it comes late)')
+                     if c.delayed else '')
             task = '' if self._task == DEFAULT_TASK else f' of task {self._task}'
             return (f"teacher{task}: judges each action against the expert's, utterances "
                     f'{interval}, {human}{plain}')
@@ -149,13 +155,14 @@ class FeedbackNode(Node):
                 'starting the trainer over')
         for feedback in out.feedback:
             self._publish_feedback(feedback.stamp_ns, feedback.h, feedback.position,
-                                   feedback.distance)
+                                   feedback.distance, feedback.pressed_ns)
         if out.utterance is not None:
             self._publish_utterance(out.utterance)
 
-    def _publish_feedback(self, stamp_ns: int, h: float, y: float, z: float) -> None:
-        """feedback_stamped, or plain feedback when it comes late (as a person's would)."""
-        self._unsent.append((stamp_ns, h, y, z))
+    def _publish_feedback(self, stamp_ns: int, h: float, y: float, z: float,
+                          pressed_ns: int) -> None:
+        """feedback_stamped, or plain feedback (or pressed) when it comes late as a person's."""
+        self._unsent.append((stamp_ns, h, y, z, pressed_ns))
         self._send_held()
 
     def _readers(self, publisher) -> int:
@@ -184,18 +191,20 @@ class FeedbackNode(Node):
                 self._utterance_pub.publish(plain)
                 self._given['given_utterances'] += 1
         stamped = not (self._kind == 'teacher' and self._config.delayed)
-        publisher = self._feedback_stamped_pub if stamped else self._feedback_pub
+        pressed = not stamped and self._press_times
+        publisher = (self._feedback_stamped_pub if stamped else
+                     self._feedback_pressed_pub if pressed else self._feedback_pub)
         if publisher.get_subscription_count() < self._wait_subscribers:
             return
         while self._unsent:
-            stamp_ns, h, y, z = self._unsent.popleft()
-            if stamped:
+            stamp_ns, h, y, z, pressed_ns = self._unsent.popleft()
+            if stamped or pressed:  # the step judged, or the moment given
                 msg_out = Vector3Stamped()
-                msg_out.header.stamp = ns_to_stamp(stamp_ns)
+                msg_out.header.stamp = ns_to_stamp(stamp_ns if stamped else pressed_ns)
                 msg_out.vector.x, msg_out.vector.y, msg_out.vector.z = (
                     float(h), float(y), float(z))
-                self._feedback_stamped_pub.publish(msg_out)
-            if not stamped or self._plain_copies:
+                publisher.publish(msg_out)
+            if not (stamped or pressed) or self._plain_copies:
                 self._feedback_pub.publish(Float32(data=float(h)))
             self._given['given_feedback'] += 1
 
@@ -245,7 +254,7 @@ class FeedbackNode(Node):
                                       'a new trial, starting the teacher over')
         for judgement in out.feedback:
             self._publish_feedback(judgement.stamp_ns, judgement.h, judgement.expert_action,
-                                   judgement.action)
+                                   judgement.action, judgement.pressed_ns)
         if out.utterance is not None:
             self._publish_utterance(out.utterance)
 

@@ -54,6 +54,8 @@ class Feedback(NamedTuple):
     seen_ns: int
     """The step whose position was judged (the next step)."""
     flipped: bool = False
+    pressed_ns: int = 0
+    """When it is given (simulation ns): ``seen_ns`` plus the human-like delay."""
     """The noise option flipped the sign."""
 
 

@@ -62,6 +62,7 @@ def build_layout() -> fl.Layout:
         'feedback timeline',
         _series(_topic(topics.FEEDBACK) + '.data', 'feedback (a person, ros2 topic pub)', False),
         _series(_topic(topics.FEEDBACK_STAMPED) + '.vector.x', 'feedback (stamped)', False),
+        _series(_topic(topics.FEEDBACK_PRESSED) + '.vector.x', 'feedback (pressed)', False),
         _series(values + '.h_taken', 'H of the action taken'),
         _series(values + '.h_best', 'best H'))
     learning = _plot(

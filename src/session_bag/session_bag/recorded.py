@@ -35,6 +35,7 @@ RECORDED = (
     RecordedTopic(topics.ACTION_TAKEN, Joy, qos.ACTIONS),
     RecordedTopic(topics.FEEDBACK, Float32, qos.HUMAN),
     RecordedTopic(topics.FEEDBACK_STAMPED, Vector3Stamped, qos.HUMAN),
+    RecordedTopic(topics.FEEDBACK_PRESSED, Vector3Stamped, qos.HUMAN),
     RecordedTopic(topics.UTTERANCE, String, qos.HUMAN),
     RecordedTopic(topics.UTTERANCE_STAMPED, DiagnosticArray, qos.HUMAN),
     RecordedTopic(topics.FEEDBACK_LOGGED, DiagnosticArray, qos.HUMAN),

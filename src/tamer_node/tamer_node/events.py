@@ -39,7 +39,8 @@ class FeedbackEvent:
     stamp: Optional[int]
     """The step it is attributed to: its header stamp, or the arrival stamp if unstamped."""
     now: Optional[int]
-    """The newest observation stamp when it arrived (the window's t)."""
+    """The window's t: the newest observation stamp when it arrived, or the moment a 'pressed'
+    feedback was given."""
     status: str
     """'ok', 'duplicate' (the plain copy of a stamped one), 'invalid', 'no_observation'."""
     credit: str

@@ -48,9 +48,11 @@ class FeedbackIntake:
         """
         Queue a feedback: the disk thread logs it, then hands it to the learner.
 
-        ``source`` is 'stamped' (``stamp`` = the step judged) or 'plain' (stamped on arrival
+        ``source`` is 'stamped' (``stamp`` = the step judged), 'plain' (stamped on arrival
         with the newest observation stamp, and ignored as a copy while a stamped stream is
-        active). Bad values are logged and counted, never raised. Returns at once.
+        active) or 'pressed' (as plain, but ``stamp`` is the moment the trainer gave it, in
+        simulation time: the credit window is measured from it instead of from the newest
+        observation). Bad values are logged and counted, never raised. Returns at once.
         """
         arrived = time.monotonic()
         h = float(h)
@@ -61,13 +63,16 @@ class FeedbackIntake:
             self._stamped_at = arrived
         elif arrived - self._stamped_at < self.config.stamped_active_s:
             status = 'duplicate'
-        if source == 'plain':
+        now = self._steps.now
+        if source == 'pressed':  # the window's t: the press, not the newest observation
+            now = stamp if now is not None else None
+        if source in ('plain', 'pressed'):
             stamp = self._steps.now
         if status == 'ok' and stamp is None:
             status = 'no_observation'
         with self._lock:
             self.seq += 1
-            event = FeedbackEvent(self.seq, h, stamp, self._steps.now, status,
+            event = FeedbackEvent(self.seq, h, stamp, now, status,
                                   self.config.credit, arrived, self._steps.session)
             entry = entry_from_event(event, source, time.time())
             entry.update(extra or {})

@@ -1,7 +1,8 @@
 """
 tamer_node: Deep TAMER with the saliency L2 term over ROS topics (a thin shell on TamerAgent).
 
-Subscribes ``observation``, ``saliency``, ``feedback``, ``feedback_stamped``, ``utterance`` and
+Subscribes ``observation``, ``saliency``, ``feedback``, ``feedback_stamped``,
+``feedback_pressed`` (h and the moment it was given: credited from then), ``utterance`` and
 ``action_taken`` (the action executed on a step when it was not the agent's: attention_replay);
 publishes ``action`` (sensor_msgs/Joy with the answered image's header), ``metrics``,
 ``feedback_logged``: one receipt per feedback or utterance line written to the log,
@@ -81,6 +82,8 @@ class TamerNode(Closing, Node):
         self.create_subscription(Joy, topics.ACTION_TAKEN, self._on_action_taken, qos.ACTIONS)
         self.create_subscription(Vector3Stamped, topics.FEEDBACK_STAMPED,
                                  with_message_info(self._on_feedback_stamped), qos.HUMAN)
+        self.create_subscription(Vector3Stamped, topics.FEEDBACK_PRESSED,
+                                 with_message_info(self._on_feedback_pressed), qos.HUMAN)
         self.create_subscription(Float32, topics.FEEDBACK, with_message_info(self._on_feedback),
                                  qos.HUMAN)
         self.create_subscription(String, topics.UTTERANCE, with_message_info(self._on_utterance),
@@ -195,6 +198,10 @@ class TamerNode(Closing, Node):
         extra = {'critical_position': json_number(msg.vector.y),
                  'distance': json_number(msg.vector.z), **_identity(info)}
         self.agent.on_feedback(msg.vector.x, 'stamped', stamp_to_ns(msg.header.stamp), extra)
+
+    def _on_feedback_pressed(self, msg: Vector3Stamped, info) -> None:
+        self.agent.on_feedback(msg.vector.x, 'pressed', stamp_to_ns(msg.header.stamp),
+                               _identity(info))
 
     def _on_feedback(self, msg: Float32, info) -> None:
         self.agent.on_feedback(msg.data, 'plain', extra=_identity(info))

@@ -26,6 +26,7 @@ PUBLISHED = {
     topics.OBSERVATION: (Image, qos.FRAMES_WRITER),
     topics.FEEDBACK: (Float32, qos.HUMAN),
     topics.FEEDBACK_STAMPED: (Vector3Stamped, qos.HUMAN),
+    topics.FEEDBACK_PRESSED: (Vector3Stamped, qos.HUMAN),
     topics.UTTERANCE: (String, qos.HUMAN),
     topics.UTTERANCE_STAMPED: (DiagnosticArray, qos.HUMAN),
     topics.ACTION_TAKEN: (Joy, qos.ACTIONS),
@@ -101,9 +102,11 @@ class ReplayPlayer(Node):
         """Whether saliency_node and tamer_node take observations and the tamer answers."""
         counts = {topic: self.publishers_by_topic[topic].get_subscription_count()
                   for topic in (topics.OBSERVATION, topics.UTTERANCE, topics.FEEDBACK,
-                                topics.FEEDBACK_STAMPED, topics.ACTION_TAKEN)}
+                                topics.FEEDBACK_STAMPED, topics.FEEDBACK_PRESSED,
+                                topics.ACTION_TAKEN)}
         return (counts[topics.OBSERVATION] >= 2 and counts[topics.UTTERANCE] >= 2
                 and counts[topics.FEEDBACK] >= 1 and counts[topics.FEEDBACK_STAMPED] >= 1
+                and counts[topics.FEEDBACK_PRESSED] >= 1
                 and counts[topics.ACTION_TAKEN] >= 1
                 and self._action_sub.get_publisher_count() >= 1
                 and self._receipt_sub.get_publisher_count() >= 1)

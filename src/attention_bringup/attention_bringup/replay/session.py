@@ -20,10 +20,11 @@ from diagnostic_msgs.msg import DiagnosticArray
 from env_node.status import STATUS_NAME as ENV_STATUS_NAME
 from rclpy.serialization import deserialize_message
 
-REPLAYED = (topics.OBSERVATION, topics.FEEDBACK, topics.FEEDBACK_STAMPED, topics.UTTERANCE,
-            topics.UTTERANCE_STAMPED)
+REPLAYED = (topics.OBSERVATION, topics.FEEDBACK, topics.FEEDBACK_STAMPED,
+            topics.FEEDBACK_PRESSED, topics.UTTERANCE, topics.UTTERANCE_STAMPED)
 """Topics sent to the fresh nodes (relative names)."""
-RECEIPTED = (topics.FEEDBACK, topics.FEEDBACK_STAMPED, topics.UTTERANCE)
+RECEIPTED = (topics.FEEDBACK, topics.FEEDBACK_STAMPED, topics.FEEDBACK_PRESSED,
+             topics.UTTERANCE)
 """Topics the tamer logs one line for, with a receipt on ``feedback_logged``."""
 LOOKAHEAD_OBSERVATIONS = 8
 """How many later observations may come before an observation's executed action is known (one
