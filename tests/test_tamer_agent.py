@@ -92,10 +92,12 @@ def test_feedback_for_an_unknown_step_is_logged_and_counted(agents, tmp_path):
     assert any(level == 'warn' for level, _ in agent.messages)
 
 
-def test_plain_feedback_is_a_copy_while_stamped_feedback_flows(agents, tmp_path):
+@pytest.mark.parametrize('source', ['stamped', 'pressed'])
+def test_plain_feedback_is_a_copy_while_stamped_feedback_flows(agents, tmp_path, source):
+    # A pressed verdict (the moment it was given) has a plain copy too with plain_copies.
     agent = agents(stamped_active_s=60.0)
     play(agent, 4)
-    agent.on_feedback(1.0, 'stamped', stamp(1))
+    agent.on_feedback(1.0, source, stamp(1))
     agent.on_feedback(1.0, 'plain')
     assert processed(agent, 2)
     metrics = agent.metrics()

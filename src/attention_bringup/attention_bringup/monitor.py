@@ -160,7 +160,8 @@ class GraphMonitor(Node):
     def _on_feedback(self, msg: Float32) -> None:
         with self.lock:
             self._count(topics.FEEDBACK)
-            if self.counts[topics.FEEDBACK_STAMPED] == 0:  # no stamped companion: a person
+            if not (self.counts[topics.FEEDBACK_STAMPED]  # no stamped companion: a person
+                    or self.counts[topics.FEEDBACK_PRESSED]):
                 self.tracker.counters.feedback += 1
                 self.tracker.counters.feedback_sum += float(msg.data)
 

@@ -49,17 +49,17 @@ class FeedbackIntake:
         Queue a feedback: the disk thread logs it, then hands it to the learner.
 
         ``source`` is 'stamped' (``stamp`` = the step judged), 'plain' (stamped on arrival
-        with the newest observation stamp, and ignored as a copy while a stamped stream is
-        active) or 'pressed' (as plain, but ``stamp`` is the moment the trainer gave it, in
-        simulation time: the credit window is measured from it instead of from the newest
-        observation). Bad values are logged and counted, never raised. Returns at once.
+        with the newest observation stamp, and ignored as a copy while a stamped or pressed
+        stream is active) or 'pressed' (as plain, but ``stamp`` is the moment the trainer gave
+        it, in simulation time: the credit window is measured from it instead of from the
+        newest observation). Bad values are logged and counted, never raised. Returns at once.
         """
         arrived = time.monotonic()
         h = float(h)
         status = 'ok'
         if not math.isfinite(h) or abs(h) > FEEDBACK_RANGE:  # the one range of every node
             status = 'invalid'
-        elif source == 'stamped':
+        elif source in ('stamped', 'pressed'):  # a synthetic trainer's: plain is its copy
             self._stamped_at = arrived
         elif arrived - self._stamped_at < self.config.stamped_active_s:
             status = 'duplicate'
