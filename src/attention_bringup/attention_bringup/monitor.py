@@ -15,6 +15,7 @@ thread: destroying a subscription while another thread spins the executor can ha
 executor for good (seen as a "stall" at the gallery's first sample).
 """
 
+import functools
 import threading
 import time
 import traceback
@@ -72,8 +73,9 @@ class GraphMonitor(Node):
         sub = self.create_subscription
         self._status_subscription = sub(
             DiagnosticArray, topics.ENV_STATUS, self._on_env_status, qos.WATCH_STEPS)
-        sub(Vector3Stamped, topics.FEEDBACK_STAMPED, self._on_feedback_stamped, qos.WATCH_STEPS)
-        sub(Vector3Stamped, topics.FEEDBACK_PRESSED, self._on_feedback_pressed, qos.WATCH_STEPS)
+        for verdicts in (topics.FEEDBACK_STAMPED, topics.FEEDBACK_PRESSED):  # a trainer's
+            sub(Vector3Stamped, verdicts, functools.partial(self._on_verdict, verdicts),
+                qos.WATCH_STEPS)
         sub(DiagnosticArray, topics.UTTERANCE_STAMPED, self._on_utterance_stamped, qos.WATCH_STEPS)
         if watch_plain:
             sub(Float32, topics.FEEDBACK, self._on_feedback, qos.WATCH_STEPS)
@@ -145,15 +147,10 @@ class GraphMonitor(Node):
             self.env_message = msg.status[0].message if msg.status else ''
             self.tracker.on_status(stamp_to_ns(msg.header.stamp), values, self.elapsed())
 
-    def _on_feedback_stamped(self, msg: Vector3Stamped) -> None:
+    def _on_verdict(self, topic: str, msg: Vector3Stamped) -> None:
+        """Count a synthetic trainer's verdict, stamped or pressed (x = h)."""
         with self.lock:
-            self._count(topics.FEEDBACK_STAMPED)
-            self.tracker.counters.feedback += 1
-            self.tracker.counters.feedback_sum += float(msg.vector.x)
-
-    def _on_feedback_pressed(self, msg: Vector3Stamped) -> None:
-        with self.lock:
-            self._count(topics.FEEDBACK_PRESSED)
+            self._count(topic)
             self.tracker.counters.feedback += 1
             self.tracker.counters.feedback_sum += float(msg.vector.x)
 
