@@ -311,6 +311,9 @@ def test_stamped_feedback_has_no_plain_copy_unless_asked(probe, start_node):
     trainer = start_node('feedback_node', {'utterance_interval': 0.0})
     assert probe.wait_for_subscribers(positions, timeout=STARTUP_S)
     assert wait_until(lambda: probe.node.count_publishers(topics.FEEDBACK) >= 1, STARTUP_S)
+    # Both utterance topics matched before the first step, so each hears every sentence.
+    for log in (listener.utterance, listener.utterance_stamped):
+        assert probe.wait_matched(log, timeout=STARTUP_S)
     publish_positions(positions, range(0, 20))
     assert listener.feedback_stamped.wait_count(19, REPLY_S), trainer.log_text()[-2000:]
     # The plain utterances are published after the feedback of the same step.
