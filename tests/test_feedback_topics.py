@@ -275,6 +275,14 @@ def test_a_person_takes_over_and_bad_input_is_logged(probe, start_node):
     person_rates.publish(Float32(data=1.0))
     say_until_heard(person_says, trainer, 'Move left and avoid the skull.', step=39)
     assert trainer.wait_for_log('a person gave feedback +1', REPLY_S), trainer.log_text()[-2000:]
+    # The console's timed press (feedback_pressed) is a person's feedback too.
+    console = probe.publisher(Vector3Stamped, topics.FEEDBACK_PRESSED, qos.HUMAN)
+    assert probe.wait_for_subscribers(console, timeout=STARTUP_S)
+    timed = Vector3Stamped()
+    timed.header.stamp = ns_to_stamp(frames_to_ns(4 * 39))
+    timed.vector.x = -0.5
+    console.publish(timed)
+    assert trainer.wait_for_log('a person gave feedback -0.5', REPLY_S), trainer.log_text()[-2000:]
     log = trainer.log_text()
     for reason in ('empty utterance', 'whitespace-only utterance', 'non-ASCII characters',
                    'utterance of 100000 characters'):

@@ -105,6 +105,20 @@ def test_plain_feedback_is_a_copy_while_stamped_feedback_flows(agents, tmp_path,
     assert [e['status'] for e in log_lines(tmp_path / 'run')] == ['ok', 'duplicate']
 
 
+def test_a_persons_plain_feedback_beside_a_pressed_stream_is_learned_from(agents, tmp_path):
+    # The console's presses carry their moment (pressed); someone's `ros2 topic pub` at the
+    # same time is plain. Each plain pairs with one verdict of the same h at most.
+    agent = agents(stamped_active_s=60.0)
+    play(agent, 4)
+    agent.on_feedback(1.0, 'pressed', stamp(1))
+    agent.on_feedback(-1.0, 'plain')  # no -1 verdict to copy: a person's
+    agent.on_feedback(1.0, 'plain')  # the +1's copy
+    agent.on_feedback(1.0, 'plain')  # its copy came already: a person's
+    assert processed(agent, 4)
+    assert [e['status'] for e in log_lines(tmp_path / 'run')] == ['ok', 'ok', 'duplicate', 'ok']
+    assert agent.metrics()['feedback/duplicates'] == 1
+
+
 def test_plain_feedback_without_a_stamped_stream_is_stamped_on_arrival(agents):
     agent = agents(credit='step')
     actions = play(agent, 5)

@@ -15,16 +15,19 @@ import urllib.error
 import urllib.request
 
 from attention_common import qos, topics
-from attention_common.image_codec import image_to_numpy
-from attention_common.stamps import stamp_to_ns
+from attention_common.image_codec import image_to_numpy, numpy_to_image
+from attention_common.stamps import ns_to_stamp, stamp_to_ns
 from attention_tasks.task import load_task
 from cdp import Browser, CHROMIUM
-from diagnostic_msgs.msg import DiagnosticArray
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from geometry_msgs.msg import Vector3Stamped
 from harness import free_port, wait_until
+import numpy as np
 import pytest
 from sensor_msgs.msg import Image
 from std_msgs.msg import Float32
 from trainer_console.config import ConsoleConfig
+from trainer_console.press_time import MAX_AFTER_MS, press_moment
 from trainer_console.state import ConsoleState
 from trainer_console.web import ConsoleServer, Frames
 
@@ -76,7 +79,7 @@ def test_a_person_teaches_from_the_browser(probe, start_node, tmp_path):
     action_values = probe.subscribe(DiagnosticArray, topics.ACTION_VALUES, qos.ACTION_VALUES)
     credits = probe.subscribe(DiagnosticArray, topics.FEEDBACK_CREDIT, qos.HUMAN)
     someone_else = probe.publisher(Float32, topics.FEEDBACK, qos.HUMAN)
-    # Window credit: a plain press (no stamp) is credited to the steps 0.2-4 s before it.
+    # Window credit: a press is credited to the steps 0.2-4 s before the moment it was given.
     tamer = start_node('tamer_node', {'run_dir': str(run_dir), 'credit': 'window',
                                       'metrics_period_s': 0.3})
     start_node('saliency_node', {})
@@ -173,16 +176,22 @@ def test_a_person_teaches_from_the_browser(probe, start_node, tmp_path):
     assert not statuses.wait_count(count + 3, 1.5)  # no steps while paused
     lines = log_lines(run_dir)
     feedback = [line for line in lines if line['kind'] == 'feedback']
-    assert [(line['h'], line['source'], line['publication_seq']) for line in feedback] == [
-        (1.0, 'plain', 1), (1.0, 'plain', 2), (1.0, 'plain', 3), (1.0, 'plain', 4),
-        (1.0, 'plain', 5), (1.0, 'plain', 6), (-1.0, 'plain', 7),
-        (-0.5, 'plain', 1), (1.0, 'plain', 8)]  # someone else's #1, then our #8
+    # Ours carry the moment given (pressed); someone else's plain -0.5 is learned from too.
+    assert [(line['h'], line['source'], line['publication_seq'], line['status'])
+            for line in feedback] == [
+        (1.0, 'pressed', 1, 'ok'), (1.0, 'pressed', 2, 'ok'), (1.0, 'pressed', 3, 'ok'),
+        (1.0, 'pressed', 4, 'ok'), (1.0, 'pressed', 5, 'ok'), (1.0, 'pressed', 6, 'ok'),
+        (-1.0, 'pressed', 7, 'ok'), (-0.5, 'plain', 1, 'ok'), (1.0, 'pressed', 8, 'ok')]
+    # Each of ours timed on the env's clock from the frame on screen: near the newest
+    # observation the learner had when it arrived (at most a step after it).
+    for line in feedback[:7]:
+        assert -10**9 // 15 - 10**7 <= line['stamp_ns'] - line['now_ns'] < 10**9, line
     # The utterance made saliency images whose masks keep something (the ladders, the agent).
     assert any(image_to_numpy(mask).any() for mask in masks.snapshot())
     assert [line['text'] for line in lines if line['kind'] == 'utterance'] == [
         'climb down the ladder +']
     assert wait_until(lambda: 'the person gave utterance' in console.log_text(), 5.0)
-    assert tamer.alive() and console.stop(signal.SIGINT) == 0
+    assert tamer.alive() and console.stop(signal.SIGINT) == 0, console.log_text()[-3000:]
 
 
 def test_a_console_open_beyond_loopback_needs_allow_remote_and_a_token():
@@ -300,3 +309,96 @@ def test_the_page_shows_the_pause_of_an_env_that_paused_itself():
     state.paused = True  # the console's own pause: a step still in flight does not undo it
     state.on_status({'agent_step': 2}, now=0.0, message='running')
     assert state.snapshot()['paused']
+
+
+@pytest.mark.topics
+@needs_chromium
+def test_a_key_press_carries_the_frame_on_screen_and_the_time_since_it_appeared(
+        probe, start_node, tmp_path):
+    """
+    The press goes out on feedback_pressed at the frame's stamp plus the wait; paused: plain.
+
+    The frames' stamps are 1,000 s of simulation apart, so a press timed from anything but
+    the frame on screen (the console's clock, the newest frame it got) would show.
+    """
+    frames = probe.publisher(Image, topics.OBSERVATION, qos.FRAMES)
+    statuses = probe.publisher(DiagnosticArray, topics.ENV_STATUS, qos.STEP_DATA)
+    pressed = probe.subscribe(Vector3Stamped, topics.FEEDBACK_PRESSED, qos.HUMAN)
+    plain = probe.subscribe(Float32, topics.FEEDBACK, qos.HUMAN)
+    port = free_port()
+    console = start_node('trainer_console', {'port': port})
+    assert console.wait_for_log('trainer console at', STARTUP_S), console.log_text()[-2000:]
+    assert probe.wait_for_subscribers(frames, timeout=STARTUP_S)
+    assert probe.wait_matched(pressed, timeout=STARTUP_S) and probe.wait_matched(plain)
+
+    def show(k: int) -> int:
+        msg = numpy_to_image(np.full((210, 160, 3), 40 * k % 255, np.uint8), 'rgb8', Image())
+        msg.header.stamp = ns_to_stamp(k * 1000 * 10**9)
+        frames.publish(msg)
+        return k * 1000 * 10**9
+
+    def say(message: str) -> None:
+        array = DiagnosticArray()
+        array.status = [DiagnosticStatus(name='env_node', message=message)]
+        statuses.publish(array)
+
+    async def session():
+        async with Browser(f'http://127.0.0.1:{port}/', tmp_path / 'chromium') as page:
+            assert await page.wait_for("document.getElementById('connection').textContent"
+                                       " === 'connected'")
+            timings = []
+            for k, wait_s in ((1, 0.1), (2, 0.6)):
+                stamp = show(k)
+                assert await page.wait_for(f"window.frameStamp === '{stamp}'"), k
+                shown_at, before = await page.evaluate('[window.frameShownAt, performance.now()]')
+                await asyncio.sleep(wait_s)
+                await page.press('+')
+                after = await page.evaluate('performance.now()')
+                timings.append((stamp, before - shown_at, after - shown_at))
+                assert pressed.wait_count(k, 10.0), console.log_text()[-2000:]
+            say('paused')  # the env paused itself: the frame stands still, the press is plain
+            assert await page.wait_for("document.getElementById('pause').textContent"
+                                       " === 'resume'")
+            await page.press('-')
+            assert plain.wait_count(1, 10.0), console.log_text()[-2000:]
+            assert await page.wait_for(
+                "document.getElementById('confirmed').textContent === '0'")  # no learner
+            return timings
+
+    timings = asyncio.run(session())
+    for (stamp, low_ms, high_ms), msg in zip(timings, pressed.snapshot()):
+        # The key went down between our two looks at the page's clock.
+        waited_ms = (stamp_to_ns(msg.header.stamp) - stamp) / 10**6
+        assert low_ms - 1 <= waited_ms <= high_ms + 1, (waited_ms, low_ms, high_ms)
+        assert msg.vector.x == 1.0
+    assert stamp_to_ns(pressed.snapshot()[1].header.stamp) - timings[1][0] >= 0.55 * 10**9
+    assert [m.data for m in plain.snapshot()] == [-1.0]
+    assert len(pressed.snapshot()) == 2
+    assert 'key press sent plain on feedback: the env is paused' in console.log_text()
+    assert console.stop(signal.SIGINT) == 0
+
+
+def test_a_press_is_timed_only_from_a_frame_that_is_the_present():
+    second = 10**9
+    assert press_moment('5000000000', 250.0, paused=False) == (5 * second + second // 4, '')
+    assert press_moment(5 * second, 0, paused=False) == (5 * second, '')
+    assert press_moment('5000000000', 250.0, paused=True) == (None, 'the env is paused')
+    assert press_moment(None, None, paused=False)[0] is None  # no frame on screen yet
+    for frame, after in (('-5', 1.0), ('1e9', 1.0), (True, 1.0), ('5', float('nan')),
+                         ('5', -1.0), ('5', '3'), ('5', True)):
+        moment, why = press_moment(frame, after, paused=False)
+        assert moment is None and why.startswith('unreadable'), (frame, after)
+    moment, why = press_moment('5', MAX_AFTER_MS + 1, paused=False)
+    assert moment is None and 'not the present' in why
+
+
+def test_a_receipt_names_the_publisher_its_press_went_out_on():
+    # The console's plain and pressed publishers each number from 1: the source tells them.
+    state = ConsoleState()
+    t = 1_800_000_000_000_000_000
+    state.sent('feedback', 1.0, 1, t, 'pressed')
+    state.sent('feedback', -1.0, 1, t + 10**6, 'plain')
+    assert state.on_receipt('feedback', 1, t + 10**6, source='plain').value == -1.0
+    assert state.on_receipt('feedback', 1, t, source='plain') is None
+    assert state.on_receipt('feedback', 1, t, source='pressed').value == 1.0
+    assert state.confirmed['feedback'] == 2

@@ -12,7 +12,8 @@ T; the plain ``feedback`` only with ``plain_copies`` or when the teacher is late
 ``press_times`` a late verdict on ``feedback_pressed``, stamped with the moment given) and,
 when one is due, the utterance said at T' (``utterance_stamped``, stamp T', then the plain
 ``utterance``). With ``synthetic`` false it
-publishes nothing and logs what a person says on ``utterance`` and ``feedback``; bad input gets
+publishes nothing and logs what a person says on ``utterance``, ``feedback`` and
+``feedback_pressed`` (the console's timed presses); bad input gets
 a clear error line and is counted. ``synthetic`` can be switched at run time
 (``ros2 param set /feedback_node synthetic false``). ``trainer_status`` (latched) says how far
 the synthetic trainer got: the launcher ends a run only once it judged the last step.
@@ -89,7 +90,10 @@ class FeedbackNode(Node):
             self.create_subscription(DiagnosticArray, topics.ENV_STATUS, self._on_status,
                                      qos.STEP_DATA)
         self.create_subscription(String, topics.UTTERANCE, self._on_heard_utterance, qos.HUMAN)
-        self.create_subscription(Float32, topics.FEEDBACK, self._on_heard_feedback, qos.HUMAN)
+        self.create_subscription(Float32, topics.FEEDBACK,
+                                 lambda msg: self._on_heard_feedback(msg.data), qos.HUMAN)
+        self.create_subscription(Vector3Stamped, topics.FEEDBACK_PRESSED,  # the console's
+                                 lambda msg: self._on_heard_feedback(msg.vector.x), qos.HUMAN)
         self.add_on_set_parameters_callback(self._on_set_parameters)
         steady = Clock(clock_type=ClockType.STEADY_TIME)
         self.create_timer(config.summary_period, self._log_summary, clock=steady)
@@ -293,16 +297,16 @@ class FeedbackNode(Node):
         self._counts['heard_utterances'] += 1
         self.get_logger().info(f'a person said {msg.data!r} {self._now_text()}')
 
-    def _on_heard_feedback(self, msg: Float32) -> None:
+    def _on_heard_feedback(self, h: float) -> None:
         if self._synthetic:
             return
-        problem = feedback_problem(msg.data)
+        problem = feedback_problem(h)
         if problem is not None:
             self._counts['bad_feedback'] += 1
             self.get_logger().error(f'bad feedback ignored: {problem}')
             return
         self._counts['heard_feedback'] += 1
-        self.get_logger().info(f'a person gave feedback {msg.data:+g} {self._now_text()}')
+        self.get_logger().info(f'a person gave feedback {h:+g} {self._now_text()}')
 
     def _log_summary(self) -> None:
         summary = dict(self._counts, **self._trainer.counts)

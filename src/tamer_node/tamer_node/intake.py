@@ -22,6 +22,10 @@ from tamer_node.events import entry_from_event, FeedbackEvent
 from tamer_node.persistence import DiskWriter, FeedbackLog, StepJournal
 
 
+MAX_TWINS = 4096
+"""Verdicts kept waiting for their plain copy (more than ``stamped_active_s`` ever holds)."""
+
+
 class FeedbackIntake:
     """Numbers, checks and logs each feedback, then hands it to ``learn`` (the disk thread)."""
 
@@ -39,7 +43,8 @@ class FeedbackIntake:
         self._lock = threading.Lock()  # seq order == log order == inbox order
         self.seq = 0
         """Feedback received over the whole run (the last one's ``seq``)."""
-        self._stamped_at = -math.inf
+        self._twins = collections.deque()
+        """(arrival, h) of stamped and pressed verdicts whose plain copy has not come yet."""
         self.on_logged: Optional[Callable[[dict], None]] = None
         """Called on the disk thread with each feedback_log.jsonl entry once it is written."""
 
@@ -49,8 +54,9 @@ class FeedbackIntake:
         Queue a feedback: the disk thread logs it, then hands it to the learner.
 
         ``source`` is 'stamped' (``stamp`` = the step judged), 'plain' (stamped on arrival
-        with the newest observation stamp, and ignored as a copy while a stamped or pressed
-        stream is active) or 'pressed' (as plain, but ``stamp`` is the moment the trainer gave
+        with the newest observation stamp; a copy, logged as 'duplicate', when it pairs with
+        a stamped or pressed verdict of the same h that came at most ``stamped_active_s``
+        before it) or 'pressed' (as plain, but ``stamp`` is the moment the trainer gave
         it, in simulation time: the credit window is measured from it instead of from the
         newest observation). Bad values are logged and counted, never raised. Returns at once.
         """
@@ -59,9 +65,9 @@ class FeedbackIntake:
         status = 'ok'
         if not math.isfinite(h) or abs(h) > FEEDBACK_RANGE:  # the one range of every node
             status = 'invalid'
-        elif source in ('stamped', 'pressed'):  # a synthetic trainer's: plain is its copy
-            self._stamped_at = arrived
-        elif arrived - self._stamped_at < self.config.stamped_active_s:
+        elif source in ('stamped', 'pressed'):
+            self._expect_copy(arrived, h)
+        elif self._is_copy(arrived, h):
             status = 'duplicate'
         now = self._steps.now
         if source == 'pressed':  # the window's t: the press, not the newest observation
@@ -85,6 +91,30 @@ class FeedbackIntake:
             self._log('warn', f'feedback #{event.seq} came before any observation: logged, '
                       'not learned from')
         return event
+
+    def _expect_copy(self, arrived: float, h: float) -> None:
+        """Note a verdict whose plain copy (a synthetic trainer's ``plain_copy``) may follow."""
+        with self._lock:
+            self._twins.append((arrived, h))
+            if len(self._twins) > MAX_TWINS:
+                self._twins.popleft()
+
+    def _is_copy(self, arrived: float, h: float) -> bool:
+        """
+        Pair a plain feedback with the oldest unpaired verdict of the same h still recent.
+
+        One plain message per verdict at most: a person's plain presses beside a trainer's
+        verdicts (``ros2 topic pub``, ``teach``, a console of old) are learned from, not taken
+        for copies, unless a verdict of the same h is left unpaired.
+        """
+        with self._lock:
+            while self._twins and arrived - self._twins[0][0] >= self.config.stamped_active_s:
+                self._twins.popleft()
+            for index, (_, twin) in enumerate(self._twins):
+                if twin == h:
+                    del self._twins[index]
+                    return True
+        return False
 
     def _log_then_learn(self, entry: dict, event: FeedbackEvent) -> None:
         """On the disk thread: the feedback is on disk (flushed) before the learner sees it."""

@@ -25,6 +25,10 @@ class ConsoleConfig:
     """JPEG quality of the frames sent (1-100)."""
     env_node: str = 'env_node'
     """Name of the env node whose ``paused`` parameter the pause button sets."""
+    press_times: bool = True
+    """true: each key press goes on ``feedback_pressed`` with the moment it was given (the
+    frame on screen plus the time since it appeared, ``press_time.py``), and the learner
+    credits it from then; plain on ``feedback`` while paused. false: always plain."""
     task: str = 'montezuma'
     """The task taught: what utterances can name (its template manifest) and its milestones
     (Room 1's critical positions, DoorKey's sub-goals)."""

@@ -4,8 +4,11 @@ trainer_console: a person teaches from the browser (a thin rclpy shell on Consol
 Subscribes ``observation`` and ``saliency`` (shown live, as JPEG over a websocket),
 ``env_status``, ``metrics``, ``utterance``, ``utterance_stamped``, ``feedback_logged`` (the
 learner's receipts), ``action_values`` and ``feedback_credit`` (what the learner made of the
-person: ``learner_view.py``); publishes ``feedback`` (std_msgs/Float32) and ``utterance``
-(std_msgs/String), the very topics ``ros2 topic pub`` uses, and sets env_node's ``paused``.
+person: ``learner_view.py``); publishes each key press on ``feedback_pressed``
+(geometry_msgs/Vector3Stamped: h and the moment it was given, ``press_time.py``; plain
+``feedback``, std_msgs/Float32, while paused or with ``press_times`` false) and words on
+``utterance`` (std_msgs/String), the very topic ``ros2 topic pub`` uses, and sets env_node's
+``paused``.
 The web server runs on its own thread (``web.ConsoleServer``); rclpy spins in the main one.
 """
 
@@ -19,13 +22,14 @@ from attention_common.feedback import FEEDBACK_RANGE
 from attention_common.image_codec import image_to_numpy, ImageFormatError
 from attention_common.node_main import Closing, run_node, StartupError
 from attention_common.parameters import declare_dataclass
-from attention_common.stamps import stamp_to_ns
+from attention_common.stamps import ns_to_stamp, stamp_to_ns
 from attention_common.utterance import MAX_UTTERANCE_CHARS
 from attention_tasks.montezuma.critical_positions import DEFAULT_RADIUS
 from attention_tasks.task import load_task, UnknownTask
 import cv2
 from diagnostic_msgs.msg import DiagnosticArray
 from env_node.status import parse_status
+from geometry_msgs.msg import Vector3Stamped
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
@@ -35,6 +39,7 @@ from sensor_msgs.msg import Image
 from std_msgs.msg import Float32, String
 from trainer_console.config import ConsoleConfig
 from trainer_console.matching import subscriber_names, wait_for_all_matched
+from trainer_console.press_time import press_moment
 from trainer_console.state import ConsoleState
 from trainer_console.web import ConsoleServer, Frames
 
@@ -61,9 +66,13 @@ class ConsoleNode(Closing, Node):
         self.frames = Frames()
         self._encoded_at = {'frame': 0.0, 'saliency': 0.0}
         self._publish_lock = threading.Lock()  # publish and its sequence number together
-        self._published = {'feedback': 0, 'utterance': 0}
-        self._feedback_pub = self.create_publisher(Float32, topics.FEEDBACK, qos.HUMAN)
-        self._utterance_pub = self.create_publisher(String, topics.UTTERANCE, qos.HUMAN)
+        self._published = dict.fromkeys((topics.FEEDBACK, topics.FEEDBACK_PRESSED,
+                                         topics.UTTERANCE), 0)
+        self._person_pubs = {
+            topic: self.create_publisher(kind, topic, qos.HUMAN) for topic, kind in (
+                (topics.FEEDBACK, Float32), (topics.FEEDBACK_PRESSED, Vector3Stamped),
+                (topics.UTTERANCE, String))}
+        self.counts = {'timed_presses': 0, 'plain_presses': 0, 'unreadable_timings': 0}
         self.create_subscription(Image, topics.OBSERVATION,
                                  lambda msg: self._on_image('frame', msg), qos.FRAMES)
         self.create_subscription(Image, topics.SALIENCY,
@@ -161,38 +170,63 @@ class ConsoleNode(Closing, Node):
                     or abs(h) > FEEDBACK_RANGE):
                 return {'ok': False, 'error': f'feedback must be in [-{FEEDBACK_RANGE:g}, '
                                               f'{FEEDBACK_RANGE:g}], got {h!r}'}
-            return self._give('feedback', float(h), Float32(data=float(h)))
+            return self._give_feedback(float(h), command)
         if kind == 'utterance':
             text = command.get('text')
             if not isinstance(text, str) or not text.strip():
                 return {'ok': False, 'error': 'an utterance needs words'}
             if len(text) > MAX_UTTERANCE_CHARS:
                 return {'ok': False, 'error': f'at most {MAX_UTTERANCE_CHARS} characters'}
-            return self._give('utterance', text, String(data=text))
+            return self._give('utterance', text, String(data=text), topics.UTTERANCE)
         if kind in ('pause', 'resume'):
             return self._pause(kind == 'pause')
         return {'ok': False, 'error': f'unknown command {kind!r}'}
 
     def listeners(self, kind: str) -> list:
         """Return the nodes the graph knows to subscribe to ``kind``'s topic (not this one)."""
-        return subscriber_names(self, topics.FEEDBACK if kind == 'feedback' else topics.UTTERANCE)
+        if kind == 'utterance':
+            return subscriber_names(self, topics.UTTERANCE)
+        return subscriber_names(self, topics.FEEDBACK_PRESSED if self.config.press_times
+                                else topics.FEEDBACK)
 
-    def _give(self, kind: str, value, msg) -> dict:
-        publisher = self._feedback_pub if kind == 'feedback' else self._utterance_pub
+    def _give_feedback(self, h: float, command: dict) -> dict:
+        """Publish a key press: with the moment it was given when the page timed it."""
+        pressed_ns, why = None, 'press_times is false'
+        if self.config.press_times:
+            pressed_ns, why = press_moment(command.get('frame'), command.get('after_ms'),
+                                           self.state.paused)
+        if pressed_ns is None:
+            self.counts['plain_presses'] += 1
+            if why.startswith('unreadable'):  # not our page's: said, counted, still sent
+                self.counts['unreadable_timings'] += 1
+                self.get_logger().error(f'key press sent plain on {topics.FEEDBACK}: {why} '
+                                        f'({self.counts["unreadable_timings"]} so far)')
+            elif self.config.press_times:
+                self.get_logger().info(f'key press sent plain on {topics.FEEDBACK}: {why}')
+            return self._give('feedback', h, Float32(data=h), topics.FEEDBACK)
+        self.counts['timed_presses'] += 1
+        msg = Vector3Stamped()
+        msg.header.stamp = ns_to_stamp(pressed_ns)
+        msg.vector.x = h
+        return self._give('feedback', h, msg, topics.FEEDBACK_PRESSED)
+
+    def _give(self, kind: str, value, msg, topic: str) -> dict:
+        publisher = self._person_pubs[topic]
         wait_for_all_matched(self, publisher, time.sleep)
         if not publisher.get_subscription_count():
             self.get_logger().warning(f'{kind} {value!r} not sent: nobody subscribes to it yet '
                                       '(is tamer_node running?)')
             return {'ok': False, 'error': f'nobody listens to {kind} yet (is the learner '
                                           'running?): not sent'}
+        source = 'pressed' if topic == topics.FEEDBACK_PRESSED else 'plain'  # as logged
         with self._publish_lock:
             sent_ns = time.time_ns()
             publisher.publish(msg)
-            self._published[kind] += 1
-            seq = self._published[kind]  # DDS numbers this publisher's messages 1, 2, 3, ...
-            self.state.sent(kind, value, seq, sent_ns)
-        listeners = self.listeners(kind)
-        self.get_logger().info(f'the person gave {kind} {value!r} (#{seq}) to '
+            self._published[topic] += 1
+            seq = self._published[topic]  # DDS numbers this publisher's messages 1, 2, 3, ...
+            self.state.sent(kind, value, seq, sent_ns, source)
+        listeners = subscriber_names(self, topic)
+        self.get_logger().info(f'the person gave {kind} {value!r} (#{seq} on {topic}) to '
                                f'{", ".join(listeners) or "nobody"}')
         return {'ok': True, 'seq': seq, 'listeners': listeners}
 

@@ -36,6 +36,9 @@ class Press:
     publication_seq: int
     sent_ns: int
     """Wall time of the publish, ns."""
+    source: str = 'plain'
+    """The topic it went on, as the learner's log names it: 'plain' (``feedback``,
+    ``utterance``) or 'pressed' (``feedback_pressed``: with the moment it was given)."""
     confirmed: bool = False
     status: str = ''
     """The learner's status for it ('ok', 'invalid', 'empty', ...), once confirmed."""
@@ -75,22 +78,30 @@ class ConsoleState:
     _lock: threading.Lock = field(default_factory=threading.Lock)
     _last_point: float = 0.0
 
-    def sent(self, kind: str, value, publication_seq: int, sent_ns: int) -> Press:
+    def sent(self, kind: str, value, publication_seq: int, sent_ns: int,
+             source: str = 'plain') -> Press:
         """Note a message the console published (before its receipt can come)."""
-        press = Press(kind, value, int(publication_seq), int(sent_ns))
+        press = Press(kind, value, int(publication_seq), int(sent_ns), source)
         with self._lock:
             self.presses.append(press)
             self.given[kind] += 1
         return press
 
     def on_receipt(self, kind: str, publication_seq: Optional[int],
-                   source_time_ns: Optional[int], status: str = 'ok') -> Optional[Press]:
-        """Confirm the press the learner's receipt names; None if it names none of ours."""
+                   source_time_ns: Optional[int], status: str = 'ok',
+                   source: Optional[str] = None) -> Optional[Press]:
+        """
+        Confirm the press the learner's receipt names; None if it names none of ours.
+
+        ``source`` (the receipt's, when it has one) tells the publisher: the console's plain
+        and pressed publishers each number their messages from 1.
+        """
         if publication_seq is None or source_time_ns is None:
             return None
         with self._lock:
             for press in self.presses:
                 if (not press.confirmed and press.kind == kind
+                        and source in (None, press.source)
                         and press.publication_seq == int(publication_seq)
                         and abs(press.sent_ns - int(source_time_ns)) <= RECEIPT_WINDOW_NS):
                     press.confirmed, press.status = True, status
@@ -106,7 +117,8 @@ class ConsoleState:
                 seq, source = int(values['publication_seq']), int(values['source_time_ns'])
             except (KeyError, ValueError):
                 continue  # a receipt without a DDS identity names nobody's press
-            press = self.on_receipt(status.name, seq, source, values.get('status', 'ok'))
+            press = self.on_receipt(status.name, seq, source, values.get('status', 'ok'),
+                                    values.get('source'))
             if press is not None and press.kind == 'feedback' and press.status == 'ok':
                 try:
                     self.learner.ours(int(values['seq']))  # its credit will name this seq

@@ -8,6 +8,7 @@ let lastSnapshot = null;
 const urls = {F: null, S: null};
 window.framesShown = {F: 0, S: 0};  // images shown so far, by kind (tests and the benchmark read it)
 window.frameStamp = null;  // the stamp (ns, a string: it may exceed 2**53) of the frame on screen
+window.frameShownAt = null;  // when it was put on screen (performance.now(): the key events' clock)
 
 function connect() {
   const query = token ? `?token=${encodeURIComponent(token)}` : '';
@@ -34,7 +35,7 @@ function showImage(buffer) {
   const stamp = new DataView(buffer, 1, 8).getBigUint64(0).toString();
   const url = URL.createObjectURL(new Blob([buffer.slice(9)], {type: 'image/jpeg'}));
   const img = kind === 'F' ? $('frame') : $('saliency');
-  if (kind === 'F') { window.frameStamp = stamp; }
+  if (kind === 'F') { window.frameStamp = stamp; window.frameShownAt = performance.now(); }
   img.src = url;
   if (urls[kind]) { URL.revokeObjectURL(urls[kind]); }
   urls[kind] = url;
@@ -180,10 +181,19 @@ function note(text, kind) {
   $('log').prepend(item);
 }
 
+// A press carries the frame on screen and how long it had been there when the key went down:
+// the moment it was given, on the env's clock (press_time.py).
+function judge(h, event) {
+  const timing = window.frameStamp === null ? {}
+    : {frame: window.frameStamp, after_ms: Math.max(0, event.timeStamp - window.frameShownAt)};
+  send({type: 'feedback', h, ...timing});
+  event.preventDefault();
+}
+
 document.addEventListener('keydown', (event) => {
   if (event.target === $('utterance')) { return; }  // typing words, not judging
-  if (event.key === '+' || event.key === 'ArrowUp') { send({type: 'feedback', h: 1}); event.preventDefault(); }
-  if (event.key === '-' || event.key === 'ArrowDown') { send({type: 'feedback', h: -1}); event.preventDefault(); }
+  if (event.key === '+' || event.key === 'ArrowUp') { judge(1, event); }
+  if (event.key === '-' || event.key === 'ArrowDown') { judge(-1, event); }
 });
 $('say').addEventListener('submit', (event) => {
   event.preventDefault();
