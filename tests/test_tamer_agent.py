@@ -4,6 +4,7 @@ import json
 import threading
 import time
 
+from attention_common.feedback import PlainCopies
 from attention_common.run_files import CHECKPOINT_DIR, CHECKPOINT_FILE, FEEDBACK_LOG
 from attention_common.utterance import MAX_UTTERANCE_CHARS
 from harness import wait_until
@@ -117,6 +118,17 @@ def test_a_persons_plain_feedback_beside_a_pressed_stream_is_learned_from(agents
     assert processed(agent, 4)
     assert [e['status'] for e in log_lines(tmp_path / 'run')] == ['ok', 'ok', 'duplicate', 'ok']
     assert agent.metrics()['feedback/duplicates'] == 1
+
+
+def test_a_plain_copy_pairs_with_one_recent_verdict_of_the_same_h():
+    copies = PlainCopies(window_s=3.0)
+    copies.verdict(10.0, 1.0)
+    copies.verdict(10.1, -1.0)
+    assert copies.is_copy(10.2, -1.0)  # pairs with the -1 (not the older +1)
+    assert not copies.is_copy(10.3, -1.0)  # that one is paired: a person's
+    assert not copies.is_copy(13.5, 1.0)  # the +1 is more than 3 s old: a person's
+    copies.verdict(20.0, 0.5)
+    assert copies.is_copy(20.5, 0.5) and not copies.is_copy(20.6, 0.5)
 
 
 def test_plain_feedback_without_a_stamped_stream_is_stamped_on_arrival(agents):

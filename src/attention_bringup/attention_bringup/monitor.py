@@ -25,6 +25,7 @@ from attention_bringup.gallery import (
     cdr_header_stamp_ns, GalleryCollector, MASK, OBSERVATION, SALIENCY)
 from attention_bringup.progress import parse_key_values, ProgressTracker
 from attention_common import qos, topics
+from attention_common.feedback import PlainCopies
 from attention_common.stamps import stamp_to_ns
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Vector3Stamped
@@ -70,6 +71,7 @@ class GraphMonitor(Node):
         self.receipts: Dict[str, int] = {'feedback': 0, 'utterance': 0}
         """The learner's receipts on ``feedback_logged``, by kind."""
         self._started = time.monotonic()
+        self._copies = PlainCopies()  # plain feedback that repeats a verdict is counted once
         sub = self.create_subscription
         self._status_subscription = sub(
             DiagnosticArray, topics.ENV_STATUS, self._on_env_status, qos.WATCH_STEPS)
@@ -148,17 +150,17 @@ class GraphMonitor(Node):
             self.tracker.on_status(stamp_to_ns(msg.header.stamp), values, self.elapsed())
 
     def _on_verdict(self, topic: str, msg: Vector3Stamped) -> None:
-        """Count a synthetic trainer's verdict, stamped or pressed (x = h)."""
+        """Count a verdict, stamped or pressed (x = h): a trainer's or the console's."""
         with self.lock:
             self._count(topic)
+            self._copies.verdict(time.monotonic(), float(msg.vector.x))
             self.tracker.counters.feedback += 1
             self.tracker.counters.feedback_sum += float(msg.vector.x)
 
     def _on_feedback(self, msg: Float32) -> None:
         with self.lock:
             self._count(topics.FEEDBACK)
-            if not (self.counts[topics.FEEDBACK_STAMPED]  # no stamped companion: a person
-                    or self.counts[topics.FEEDBACK_PRESSED]):
+            if not self._copies.is_copy(time.monotonic(), float(msg.data)):  # a person's
                 self.tracker.counters.feedback += 1
                 self.tracker.counters.feedback_sum += float(msg.data)
 

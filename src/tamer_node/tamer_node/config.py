@@ -3,6 +3,7 @@
 from dataclasses import dataclass
 from typing import Dict
 
+from attention_common.feedback import COPY_WINDOW_S
 from attention_common.parameters import field_docs as _field_docs
 from attention_common.recorder_gate import RECORDER_WAIT_S
 from attention_common.stamps import MAX_STAMP_JUMP_S
@@ -96,8 +97,9 @@ class TamerConfig:
     """Wall seconds a labelled sample waits for its step's saliency image before L2-less use."""
     history_steps: int = 512
     """Recent steps (image, action, time span) kept for attributing feedback to them."""
-    stamped_active_s: float = 3.0
-    """Wall seconds after a stamped feedback during which plain feedback counts as its copy."""
+    stamped_active_s: float = COPY_WINDOW_S
+    """Wall seconds after a stamped (or pressed) verdict during which one plain feedback of the
+    same h counts as its copy (``attention_common.feedback.PlainCopies``)."""
     max_stamp_jump_s: float = MAX_STAMP_JUMP_S
     """Simulation seconds: an image stamped further than this from the newest observation is
     dropped with a warning (3 such observations in a row that continue each other: the env

@@ -15,15 +15,11 @@ import threading
 import time
 from typing import Callable, Optional
 
-from attention_common.feedback import FEEDBACK_RANGE
+from attention_common.feedback import FEEDBACK_RANGE, PlainCopies
 from attention_common.utterance import MAX_UTTERANCE_CHARS
 from tamer_node.config import TamerConfig
 from tamer_node.events import entry_from_event, FeedbackEvent
 from tamer_node.persistence import DiskWriter, FeedbackLog, StepJournal
-
-
-MAX_TWINS = 4096
-"""Verdicts kept waiting for their plain copy (more than ``stamped_active_s`` ever holds)."""
 
 
 class FeedbackIntake:
@@ -43,8 +39,7 @@ class FeedbackIntake:
         self._lock = threading.Lock()  # seq order == log order == inbox order
         self.seq = 0
         """Feedback received over the whole run (the last one's ``seq``)."""
-        self._twins = collections.deque()
-        """(arrival, h) of stamped and pressed verdicts whose plain copy has not come yet."""
+        self._copies = PlainCopies(config.stamped_active_s)  # a trainer's plain_copies
         self.on_logged: Optional[Callable[[dict], None]] = None
         """Called on the disk thread with each feedback_log.jsonl entry once it is written."""
 
@@ -65,10 +60,12 @@ class FeedbackIntake:
         status = 'ok'
         if not math.isfinite(h) or abs(h) > FEEDBACK_RANGE:  # the one range of every node
             status = 'invalid'
-        elif source in ('stamped', 'pressed'):
-            self._expect_copy(arrived, h)
-        elif self._is_copy(arrived, h):
-            status = 'duplicate'
+        else:
+            with self._lock:
+                if source in ('stamped', 'pressed'):
+                    self._copies.verdict(arrived, h)
+                elif self._copies.is_copy(arrived, h):
+                    status = 'duplicate'
         now = self._steps.now
         if source == 'pressed':  # the window's t: the press, not the newest observation
             now = stamp if now is not None else None
@@ -91,30 +88,6 @@ class FeedbackIntake:
             self._log('warn', f'feedback #{event.seq} came before any observation: logged, '
                       'not learned from')
         return event
-
-    def _expect_copy(self, arrived: float, h: float) -> None:
-        """Note a verdict whose plain copy (a synthetic trainer's ``plain_copy``) may follow."""
-        with self._lock:
-            self._twins.append((arrived, h))
-            if len(self._twins) > MAX_TWINS:
-                self._twins.popleft()
-
-    def _is_copy(self, arrived: float, h: float) -> bool:
-        """
-        Pair a plain feedback with the oldest unpaired verdict of the same h still recent.
-
-        One plain message per verdict at most: a person's plain presses beside a trainer's
-        verdicts (``ros2 topic pub``, ``teach``, a console of old) are learned from, not taken
-        for copies, unless a verdict of the same h is left unpaired.
-        """
-        with self._lock:
-            while self._twins and arrived - self._twins[0][0] >= self.config.stamped_active_s:
-                self._twins.popleft()
-            for index, (_, twin) in enumerate(self._twins):
-                if twin == h:
-                    del self._twins[index]
-                    return True
-        return False
 
     def _log_then_learn(self, entry: dict, event: FeedbackEvent) -> None:
         """On the disk thread: the feedback is on disk (flushed) before the learner sees it."""
