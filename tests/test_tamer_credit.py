@@ -439,3 +439,17 @@ def test_an_action_judged_bad_in_this_very_state_is_not_taken_again(tmp_path):
     assert second == first  # H alone has not moved: the same greedy action
     first, second = act_again_after_a_bad_verdict(tmp_path / 'memory', verdict_memory=1.0)
     assert second != first
+
+
+def test_the_ring_takes_all_its_memory_when_made_so_a_long_run_stays_flat():
+    # A million-step soak grew tamer_node by 36 MB as a slowly filling ring took its pages.
+    def resident_kb() -> int:
+        with open('/proc/self/status') as status:
+            return next(int(line.split()[1]) for line in status if line.startswith('VmRSS:'))
+
+    before = resident_kb()
+    ring = FeedbackBuffer(5000, (FEATURE_SIZE,), np.float32)
+    taken_kb = resident_kb() - before
+    size_kb = (ring.states.nbytes + ring.companions.nbytes) / 1024
+    assert taken_kb >= 0.9 * size_kb, (taken_kb, size_kb)
+    assert not ring.states.any() and len(ring) == 0

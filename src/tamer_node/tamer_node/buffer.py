@@ -88,8 +88,10 @@ class FeedbackBuffer:
     The newest ``capacity`` samples, in preallocated arrays (as SB3's buffers); thread-safe.
 
     Each sample's images (or features) are copied in, so the memory is fixed (2 x 8.4 kB per
-    sample for images, 2 x 4.5 kB for features, taken as the ring fills) and a long run does
-    not fragment the heap with small blocks.
+    sample for images, 2 x 4.5 kB for features) and a long run does not fragment the heap with
+    small blocks. Every page of the ring is taken at construction (written once), so the
+    process is its full size from the start: memory stays flat however slowly the ring fills
+    (a million-step soak), and no write into the ring waits on a page fault.
     """
 
     def __init__(self, capacity: int, item_shape: Tuple[int, ...] = INPUT_SHAPE,
@@ -99,9 +101,11 @@ class FeedbackBuffer:
             raise ValueError('capacity must be at least 1')
         self.capacity = capacity
         self.item_shape = tuple(item_shape)
-        self.states = np.zeros((capacity,) + self.item_shape, dtype)  # pages taken when used
-        self.companions = np.zeros((capacity,) + self.item_shape, dtype)
-        self.columns = {name: np.zeros(capacity, dtype) for name, dtype in _COLUMNS.items()}
+        self.states = np.empty((capacity,) + self.item_shape, dtype)
+        self.companions = np.empty((capacity,) + self.item_shape, dtype)
+        self.columns = {name: np.empty(capacity, dtype) for name, dtype in _COLUMNS.items()}
+        for array in (self.states, self.companions, *self.columns.values()):
+            array.fill(0)  # takes every page now (np.zeros would take them as the ring fills)
         self._size = 0
         self._next = 0  # ring position of the next write
         self._lock = threading.Lock()
