@@ -144,3 +144,22 @@ def test_detectable_effect_matches_power_tables():
     assert stats.detectable_effect(10) == pytest.approx(1.32, abs=0.01)
     assert stats.detectable_effect(20) == pytest.approx(0.91, abs=0.01)
     assert stats.detectable_effect(1) == math.inf
+
+
+def test_the_small_helpers_the_analyses_share():
+    assert stats.median([3, 1, 2]) == 2.0 and isinstance(stats.median([3, 1, 2]), float)
+    assert stats.median([4, 1, 2, 3]) == 2.5 and stats.median([]) is None
+    assert stats.mean_of([1, None, 2]) == 1.5 and stats.mean_of([None]) is None
+    assert stats.mean_of(x > 1 for x in (1, 2, 3, 4)) == 0.75
+    curve = stats.reach_curve([5, None, 20], [0, 10, 20])
+    assert curve['steps'] == [0, 10, 20] and curve['fraction'] == [0.0, 1 / 3, 2 / 3]
+    assert (curve['low'][0], curve['high'][0]) == stats.wilson_interval(0, 3)
+    assert stats.reach_curve([], [0])['fraction'] == [None]
+
+
+def test_welch_rows_are_holm_adjusted_together():
+    rows = stats.welch_rows([({'arm': 'a'}, [1.0, 2.0, 3.0], [4.0, 5.0, 6.0]),
+                             ({'arm': 'b'}, [1.0, 2.0, 3.0], [1.5, 2.5, 3.5])])
+    assert [row['arm'] for row in rows] == ['a', 'b']
+    assert rows[0]['p'] == stats.welch_t_test([1.0, 2.0, 3.0], [4.0, 5.0, 6.0]).p
+    assert [row['p_holm'] for row in rows] == stats.holm_adjust([row['p'] for row in rows])

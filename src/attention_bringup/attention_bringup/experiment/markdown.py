@@ -1,5 +1,7 @@
 """The report writer's pieces: tables, numbers, p-values and durations as markdown text."""
 
+import os
+from pathlib import Path
 from typing import Any, List, Mapping, Optional, Sequence
 
 
@@ -19,6 +21,11 @@ def num(value: Optional[float], digits: int = 2, missing: str = 'n/a',
     return f'{value:.{digits}f}'
 
 
+def percent(share: Optional[float], digits: int = 0) -> str:
+    """Return a share as '42 %' (``digits`` decimals); 'n/a' for None."""
+    return 'n/a' if share is None else f'{100 * share:.{digits}f} %'
+
+
 def p_value(p: Optional[float], missing: str = 'n/a') -> str:
     """Return a p-value to 3 decimals, '< 0.001' below that."""
     if p is None:
@@ -34,6 +41,11 @@ def mean_interval(estimate: Mapping, digits: int = 2) -> str:
         return f'{estimate["mean"]:.{digits}f}'
     return (f'{estimate["mean"]:.{digits}f} [{estimate["low"]:.{digits}f}, '
             f'{estimate["high"]:.{digits}f}]')
+
+
+def image(alt: str, path: Path, report: Path) -> str:
+    """Return the markdown of a figure, linked relative to the report's folder."""
+    return f'![{alt}]({os.path.relpath(Path(path).resolve(), Path(report).resolve().parent)})'
 
 
 def minutes(seconds: float) -> str:
@@ -52,3 +64,10 @@ def minutes_seconds(seconds: float) -> str:
 def table_text(header: Sequence[str], rows: Sequence[Sequence[Any]]) -> str:
     """Return a markdown table as one string."""
     return '\n'.join(table(header, rows))
+
+
+def write(path: Path, text: str) -> None:
+    """Write a report to ``path``, making its folder if need be."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(text)

@@ -6,10 +6,10 @@ proportion, Cohen's d / Hedges' g and Holm's adjustment, as plain floats and dat
 an analysis stores has one shape: ``estimate`` (a mean) and ``proportion`` (a rate).
 """
 
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 import math
 import statistics
-from typing import List, Optional, Sequence, Tuple
+from typing import Iterable, List, Mapping, Optional, Sequence, Tuple
 import warnings
 
 from scipy import stats as scipy_stats
@@ -24,6 +24,12 @@ def t_quantile(q: float, df: float) -> float:
 
 def mean(values: Sequence[float]) -> float:
     return statistics.fmean(values)
+
+
+def mean_of(values: Iterable[Optional[float]]) -> Optional[float]:
+    """Return sum / count of the values that are not None (None if there are none)."""
+    found = [value for value in values if value is not None]
+    return sum(found) / len(found) if found else None
 
 
 def sample_sd(values: Sequence[float]) -> float:
@@ -161,11 +167,17 @@ def holm_adjust(p_values: Sequence[Optional[float]]) -> List[Optional[float]]:
     return adjusted
 
 
+def welch_rows(pairs: Iterable[Tuple[Mapping, Sequence[float], Sequence[float]]]) -> List[dict]:
+    """Return ``{**key, Welch's test of a against b}`` for each (key, a, b), Holm-adjusted."""
+    rows = [{**key, **asdict(welch_t_test(a, b))} for key, a, b in pairs]
+    for row, adjusted in zip(rows, holm_adjust([row['p'] for row in rows])):
+        row['p_holm'] = adjusted
+    return rows
+
+
 def estimate(values: Sequence[float]) -> dict:
     """Return a mean and its 95 % t interval as stored: {n, mean, sd, low, high} (one shape)."""
-    found = mean_ci(values)
-    return {'n': found.n, 'mean': found.mean, 'sd': found.sd, 'low': found.low,
-            'high': found.high}
+    return asdict(mean_ci(values))
 
 
 def proportion(successes: int, n: int) -> dict:
@@ -177,10 +189,17 @@ def proportion(successes: int, n: int) -> dict:
 
 def median(values: Sequence[float]) -> Optional[float]:
     """Return the middle value (the mean of the middle two for an even count); None if empty."""
-    ordered = sorted(values)
-    if not ordered:
-        return None
-    middle = len(ordered) // 2
-    if len(ordered) % 2:
-        return float(ordered[middle])
-    return (ordered[middle - 1] + ordered[middle]) / 2.0
+    return float(statistics.median(values)) if values else None
+
+
+def reach_curve(firsts: Sequence[Optional[int]], steps: Iterable[int]) -> dict:
+    """Fraction of trials whose first step (None: never) is by each step, with Wilson bands."""
+    n = len(firsts)
+    curve = {'steps': list(steps), 'fraction': [], 'low': [], 'high': []}
+    for step in curve['steps']:
+        k = sum(1 for first in firsts if first is not None and first <= step)
+        low, high = wilson_interval(k, n)
+        curve['fraction'].append(k / n if n else None)
+        curve['low'].append(low)
+        curve['high'].append(high)
+    return curve

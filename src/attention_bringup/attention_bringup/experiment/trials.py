@@ -31,6 +31,8 @@ PLACES = (-1,) + POSITIONS
 """Position indices of ``steps_at_position``: -1 (near none) and the critical positions."""
 CURVE_EVERY = 100
 """Agent steps between two points of the stored furthest-position curve."""
+RECORD_COLUMNS = ('agent_step', 'position', 'furthest_position', 'episode', 'lives', 'has_key')
+"""The columns of ``progress.csv`` a result file is built from."""
 TAIL_CHARS = 2500
 """Longest log tail kept in a result file."""
 
@@ -83,9 +85,9 @@ def _as_int(text: str, default: int = -1) -> int:
         return default
 
 
-def read_progress(path: Path) -> List[Dict[str, int]]:
-    """Read the columns of ``progress.csv`` the study needs, as ints; [] if there is no file."""
-    columns = ('agent_step', 'position', 'furthest_position', 'episode', 'lives', 'has_key')
+def read_progress(path: Path, columns: Sequence[str] = RECORD_COLUMNS
+                  ) -> List[Dict[str, int]]:
+    """Read ``columns`` of ``progress.csv`` as ints (-1 if blank); [] if there is no file."""
     try:
         with open(path, newline='') as handle:
             return [{name: _as_int(row.get(name)) for name in columns}

@@ -6,11 +6,9 @@ intervals, the pooled held-out success with its Wilson interval, and Welch's tes
 condition against vanilla (Hedges' g, Holm's adjustment over the five comparisons of a measure).
 """
 
-from dataclasses import asdict
 from typing import Dict, List, Mapping, Sequence
 
-from attention_bringup.experiment.stats import (
-    holm_adjust, mean_ci, median, welch_t_test, wilson_interval)
+from attention_bringup.experiment.stats import estimate, median, welch_rows, wilson_interval
 from attention_bringup.minigrid_study.measures import CURVE_BINS, SUBGOALS
 
 BASELINE = 'vanilla'
@@ -29,7 +27,7 @@ def condition_summary(records: Sequence[Mapping]) -> dict:
     for name in ('episodes', 'solved', 'training_success', 'heldout_success',
                  'heldout_episodes', 'training_progress', 'heldout_progress',
                  'heldout_key_rate'):
-        summary[name] = asdict(mean_ci(_values(records, name)))
+        summary[name] = estimate(_values(records, name))
     solved = sum(r['doorkey']['heldout_solved'] for r in records)
     episodes = sum(r['doorkey']['heldout_episodes'] for r in records)
     low, high = wilson_interval(solved, episodes)
@@ -43,18 +41,18 @@ def condition_summary(records: Sequence[Mapping]) -> dict:
                  if r['doorkey']['first_step'][name] is not None]
         summary['first_step'][name] = {'trials': len(steps), 'median': median(steps)}
     summary['mean_steps_to'] = {
-        name: asdict(mean_ci([r['doorkey']['mean_steps_to'][name] for r in records
-                              if r['doorkey']['mean_steps_to'][name] is not None]))
+        name: estimate([r['doorkey']['mean_steps_to'][name] for r in records
+                        if r['doorkey']['mean_steps_to'][name] is not None])
         for name in SUBGOALS}
     curves = [r['doorkey']['success_curve'] for r in records]
     summary['success_curve'] = [
-        asdict(mean_ci([c[i] for c in curves if c[i] is not None])) for i in range(CURVE_BINS)]
-    summary['updates_per_step'] = asdict(mean_ci(
-        [float(r['updates_per_step']) for r in records if r.get('updates_per_step') is not None]))
-    summary['wall_time_s'] = asdict(mean_ci([float(r['wall_time_s']) for r in records]))
+        estimate([c[i] for c in curves if c[i] is not None]) for i in range(CURVE_BINS)]
+    summary['updates_per_step'] = estimate(
+        [float(r['updates_per_step']) for r in records if r.get('updates_per_step') is not None])
+    summary['wall_time_s'] = estimate([float(r['wall_time_s']) for r in records])
     summary['action_shares'] = {
-        kind: asdict(mean_ci([r['doorkey']['action_shares'][kind] for r in records
-                              if 'action_shares' in r['doorkey']]))
+        kind: estimate([r['doorkey']['action_shares'][kind] for r in records
+                        if 'action_shares' in r['doorkey']])
         for kind in ('turn', 'forward', 'other')}
     return summary
 
@@ -64,17 +62,9 @@ def comparisons(by_condition: Mapping[str, Sequence[Mapping]]) -> Dict[str, List
     if BASELINE not in by_condition:
         return {}
     others = [c for c in by_condition if c != BASELINE]
-    tests: Dict[str, List[dict]] = {}
-    for name in COMPARED:
-        baseline = _values(by_condition[BASELINE], name)
-        rows = []
-        for condition in others:
-            result = welch_t_test(_values(by_condition[condition], name), baseline)
-            rows.append({'condition': condition, **asdict(result)})
-        for row, adjusted in zip(rows, holm_adjust([row['p'] for row in rows])):
-            row['p_holm'] = adjusted
-        tests[name] = rows
-    return tests
+    return {name: welch_rows(({'condition': c}, _values(by_condition[c], name),
+                              _values(by_condition[BASELINE], name)) for c in others)
+            for name in COMPARED}
 
 
 def analyse(by_condition: Mapping[str, Sequence[Mapping]], budget: int) -> dict:

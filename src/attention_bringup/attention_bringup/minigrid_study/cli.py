@@ -31,8 +31,7 @@ def argument_parser() -> argparse.ArgumentParser:
                     'human-like teacher, analyse them and write docs/results_minigrid.md. '
                     'Existing trial results are skipped: the same command resumes.')
     parser.add_argument('--conditions', nargs='+', choices=CONDITIONS,
-                        default=list(THESIS_CONDITIONS),
-                        metavar='NAME')
+                        default=list(THESIS_CONDITIONS), metavar='NAME')
     parser.add_argument('--trials', type=positive_int, default=len(SPEC.seeds),
                         help=f'trials per condition, seeds 0..N-1 (default {len(SPEC.seeds)})')
     parser.add_argument('--steps', type=positive_int, default=SPEC.budget,

@@ -8,32 +8,21 @@ learner never saw), the agent step at which each sub-goal was first done, and th
 over training (for the curves).
 """
 
-import csv
 from pathlib import Path
 from typing import Dict, List, Mapping, Optional, Sequence
+
+from attention_bringup.experiment.stats import mean_of
+from attention_bringup.experiment.trials import read_progress
 
 SUBGOALS = ('key', 'door', 'goal')
 CURVE_BINS = 10
 """Training success curve: episodes ended in each tenth of the budget."""
 
 
-def _int(text, default: int = -1) -> int:
-    try:
-        return int(float(text))
-    except (TypeError, ValueError):
-        return default
-
-
 def read_rows(path: Path) -> List[Dict[str, int]]:
     """Return the columns the measures need, as ints ([] without a file)."""
-    columns = ('agent_step', 'episode', 'episode_step', 'position', 'heldout', 'session',
-               'action')
-    try:
-        with open(path, newline='') as handle:
-            return [{name: _int(row.get(name)) for name in columns}
-                    for row in csv.DictReader(handle)]
-    except OSError:
-        return []
+    return read_progress(path, ('agent_step', 'episode', 'episode_step', 'position', 'heldout',
+                                'session', 'action'))
 
 
 def episodes_of(rows: Sequence[Mapping[str, int]]) -> List[dict]:
@@ -99,15 +88,10 @@ def trial_measures(rows: Sequence[Mapping[str, int]], budget: int) -> dict:
     solved = [e for e in ended if e['solved']]
 
     def rate(group):
-        return sum(e['solved'] for e in group) / len(group) if group else None
+        return mean_of(e['solved'] for e in group)
 
     def progress(group):  # sub-goals done per episode, 0..3
-        done = [sum(e[f'{name}_at'] is not None for name in SUBGOALS) for e in group]
-        return sum(done) / len(done) if done else None
-
-    def mean_of(values):
-        values = [v for v in values if v is not None]
-        return sum(values) / len(values) if values else None
+        return mean_of(sum(e[f'{name}_at'] is not None for name in SUBGOALS) for e in group)
 
     return {
         'episodes': len(ended),
@@ -120,8 +104,7 @@ def trial_measures(rows: Sequence[Mapping[str, int]], budget: int) -> dict:
         'heldout_success': rate(heldout),
         'training_progress': progress(training),
         'heldout_progress': progress(heldout),
-        'heldout_key_rate': (sum(e['key_at'] is not None for e in heldout) / len(heldout)
-                             if heldout else None),
+        'heldout_key_rate': mean_of(e['key_at'] is not None for e in heldout),
         'first_step': first_steps(rows),
         'mean_steps_to': {name: mean_of([e[f'{name}_at'] for e in solved])
                           for name in SUBGOALS},

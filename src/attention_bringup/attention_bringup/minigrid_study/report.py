@@ -6,10 +6,11 @@ Pure text and matplotlib figures; every number comes from the trial result files
 
 import os
 from pathlib import Path
-from typing import Dict, List, Mapping, Optional, Sequence
+from typing import Dict, List, Mapping, Sequence
 
+from attention_bringup.experiment.figures import pyplot, save
 from attention_bringup.experiment.markdown import (
-    mean_interval, minutes, num, p_value, table)
+    image, mean_interval, minutes, num, p_value, percent, table, write)
 from attention_bringup.minigrid_study.analysis import BASELINE
 from attention_bringup.minigrid_study.measures import CURVE_BINS, SUBGOALS
 from attention_bringup.study.figures import COLOURS
@@ -20,19 +21,12 @@ LEARNED_RATE = 0.2
 """Held-out success from which a condition counts as having learned the task."""
 
 
-def _pyplot():
-    import matplotlib
-    matplotlib.use('Agg')
-    import matplotlib.pyplot as plt
-    return plt
-
-
 def draw_figures(result: Mapping, out_dir: Path) -> Dict[str, Path]:
     """Training success over the budget per condition; held-out success with Wilson bars."""
     conditions = list(result['conditions'])
     if not conditions:
         return {}
-    plt = _pyplot()
+    plt = pyplot()
     drawn = {}
     budget = result['budget']
     figure, axis = plt.subplots(figsize=(7.5, 4.2))
@@ -51,9 +45,7 @@ def draw_figures(result: Mapping, out_dir: Path) -> Dict[str, Path]:
     axis.legend(fontsize='small')
     axis.set_title('DoorKey: success over the run (the last part on held-out layouts)')
     drawn['success_curves'] = out_dir / 'success_curves.png'
-    figure.tight_layout()
-    figure.savefig(drawn['success_curves'], dpi=110)
-    plt.close(figure)
+    save(figure, drawn['success_curves'], dpi=110)
 
     figure, axis = plt.subplots(figsize=(7.5, 3.8))
     for i, condition in enumerate(conditions):
@@ -70,14 +62,8 @@ def draw_figures(result: Mapping, out_dir: Path) -> Dict[str, Path]:
     axis.grid(alpha=0.3, axis='y')
     axis.set_title('Held-out layouts: episodes solved, pooled over trials (Wilson 95 %)')
     drawn['heldout_success'] = out_dir / 'heldout_success.png'
-    figure.tight_layout()
-    figure.savefig(drawn['heldout_success'], dpi=110)
-    plt.close(figure)
+    save(figure, drawn['heldout_success'], dpi=110)
     return drawn
-
-
-def _rate(value: Optional[float]) -> str:
-    return 'n/a' if value is None else f'{100 * value:.0f} %'
 
 
 def discussion(result: Mapping) -> List[str]:
@@ -100,16 +86,16 @@ def discussion(result: Mapping) -> List[str]:
     lines.append(
         '**Did the learner learn the task?** '
         + (f'Yes, in {result["budget"]} steps: at least one condition solved '
-           f'{_rate(LEARNED_RATE)} or more of its held-out episodes. ' if learned else
+           f'{percent(LEARNED_RATE)} or more of its held-out episodes. ' if learned else
            f'No condition did in {result["budget"]} steps. ')
         +
         f'Vanilla solved {pooled["solved"]} of {pooled["episodes"]} held-out episodes; the '
         'sub-goals done per held-out episode (0-3: key, door, goal) were '
         + ', '.join(f'{c} {num(p)}' for c, p in progress.items())
         + '. Uniformly random actions on held-out layouts do '
-        f'{num(chance.get("progress"))} (the key in {_rate(chance.get("key"))} of '
-        f'{chance.get("episodes", 0)} episodes, the goal in {_rate(chance.get("solved"))}); '
-        f'the expert solves {_rate(chance.get("expert_solved"))}. ' + verdict)
+        f'{num(chance.get("progress"))} (the key in {percent(chance.get("key"))} of '
+        f'{chance.get("episodes", 0)} episodes, the goal in {percent(chance.get("solved"))}); '
+        f'the expert solves {percent(chance.get("expert_solved"))}. ' + verdict)
     shares = {c: s.get('action_shares', {}).get('turn', {}).get('mean') for c, s in
               conditions.items()}
     expert_turns = chance.get('expert_action_shares', {}).get('turn')
@@ -117,14 +103,14 @@ def discussion(result: Mapping) -> List[str]:
     if not learned and expert_turns is not None and shares.get(BASELINE) is not None:
         lines += ['', (
             f'**What they learned instead.** In the last quarter of each run the agents turned '
-            f'on the spot {_rate(min(v for v in shares.values() if v is not None))}-'
-            f'{_rate(max(v for v in shares.values() if v is not None))} of the time (vanilla '
-            f'{_rate(shares[BASELINE])}); the expert turns on {_rate(expert_turns)} of its '
+            f'on the spot {percent(min(v for v in shares.values() if v is not None))}-'
+            f'{percent(max(v for v in shares.values() if v is not None))} of the time (vanilla '
+            f'{percent(shares[BASELINE])}); the expert turns on {percent(expert_turns)} of its '
             'steps. Why: under random play, which is where every learner starts, the teacher '
             "judges a turn as good as the expert's action "
-            f'{_rate(judged.get("turn"))} of the time, a forward move '
-            f'{_rate(judged.get("forward"))} and a pick-up, drop or toggle '
-            f'{_rate(judged.get("other"))} (measured by this command on 3,000 random steps). '
+            f'{percent(judged.get("turn"))} of the time, a forward move '
+            f'{percent(judged.get("forward"))} and a pick-up, drop or toggle '
+            f'{percent(judged.get("other"))} (measured by this command on 3,000 random steps). '
             'H, which learns the mean judgement of each action, '
             'first learns that turning is the least bad thing to do; with two judgements in '
             'three missing, 10 % wrong and each spread over the 2-3 steps of its credit window, '
@@ -200,7 +186,6 @@ def write_report(path: Path, result: Mapping, spec, figures: Mapping[str, Path],
                  command: str, log: Sequence[Mapping]) -> None:
     """Write the Markdown report of ``spec`` (an ``experiment.spec.Spec``)."""
     fraction = spec.settings['heldout_fraction']
-    path.parent.mkdir(parents=True, exist_ok=True)
     conditions = result['conditions']
     budget = result['budget']
     heldout_from = int(round(budget * (1 - fraction)))
@@ -311,7 +296,6 @@ def write_report(path: Path, result: Mapping, spec, figures: Mapping[str, Path],
         lines.append('')
     for name in FIGURES:
         if name in figures:
-            relative = os.path.relpath(figures[name], path.parent)
-            lines += [f'![{name}]({relative})', '']
+            lines += [image(name, figures[name], path), '']
     lines += ['## Discussion', ''] + discussion(result) + ['']
-    path.write_text('\n'.join(lines) + '\n')
+    write(path, '\n'.join(lines) + '\n')

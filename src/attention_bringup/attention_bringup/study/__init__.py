@@ -1,7 +1,6 @@
 """
-The study of issue 7: run every condition's trials, analyse them, draw figures, write a report.
+The study of issue 7 (the ``thesis`` experiment): analyse the trials, draw figures, write a report.
 
-``stats`` (pure statistics), ``trials`` (one trial's compact result file), ``analysis`` (per
-condition aggregates and tests), ``figures``, ``report`` (``docs/results.md``), ``runner``
-(trials as ``attention_train`` subprocesses) and ``cli`` (the ``attention_study`` command).
+``analysis`` (per condition aggregates and tests), ``figures``, ``report`` (``docs/results.md``),
+``discussion`` and ``cli`` (the ``attention_study`` command).
 """

@@ -16,6 +16,7 @@ none), averaged over trials, with the trainer's mean h. Result files written bef
 existed count as unknown (left out), not as zero.
 """
 
+from collections import Counter
 from typing import Dict, List, Mapping, Optional, Sequence
 
 from attention_bringup.experiment import stats
@@ -50,15 +51,7 @@ def step_grid(budget: int, points: int = 101) -> List[int]:
 def reach_curve(records: Sequence[Mapping], position: int, grid: Sequence[int]) -> dict:
     """Fraction of trials with progress to ``position`` by each step, with Wilson 95 % bands."""
     firsts = [progress_step(record, position) for record in records]
-    n = len(records)
-    fraction, low, high = [], [], []
-    for step in grid:
-        k = sum(1 for first in firsts if first is not None and first <= step)
-        interval = stats.wilson_interval(k, n)
-        fraction.append(k / n if n else None)
-        low.append(interval[0])
-        high.append(interval[1])
-    return {'steps': list(grid), 'fraction': fraction, 'low': low, 'high': high, 'n': n}
+    return dict(stats.reach_curve(firsts, grid), n=len(records))
 
 
 def furthest_curve(records: Sequence[Mapping]) -> dict:
@@ -96,8 +89,7 @@ def where_steps_go(records: Sequence[Mapping]) -> dict:
         top = max(POSITIONS, key=lambda p: share[str(p)])
         if share[str(top)] > SETTLED_SHARE:
             settled[str(top)] += 1
-    mean_share = {str(p): (sum(s[str(p)] for s in shares) / len(shares) if shares else None)
-                  for p in PLACES}
+    mean_share = {str(p): stats.mean_of([s[str(p)] for s in shares]) for p in PLACES}
     return {
         'n': len(shares),
         'share': mean_share,
@@ -117,9 +109,7 @@ def reward_variants(records: Sequence[Mapping]) -> List[str]:
 def summarize_condition(condition: str, records: Sequence[Mapping]) -> dict:
     """Aggregate one condition's trials (only those whose whole budget was recorded)."""
     usable = [record for record in records if is_usable(record)]
-    outcomes: Dict[str, int] = {}
-    for record in records:
-        outcomes[record['outcome']] = outcomes.get(record['outcome'], 0) + 1
+    outcomes = dict(Counter(record['outcome'] for record in records))
     n = len(usable)
     steps_to = {}
     for position in POSITIONS:
@@ -163,21 +153,12 @@ def measure_values(records: Sequence[Mapping], measure: str) -> List[float]:
 def compare_to_baseline(by_condition: Mapping[str, Sequence[Mapping]],
                         baseline: str = BASELINE) -> List[dict]:
     """Welch t-tests of every other condition against the baseline, Holm-adjusted together."""
-    tests = []
     base = by_condition.get(baseline, [])
-    for condition, records in by_condition.items():
-        if condition == baseline:
-            continue
-        for measure in MEASURES:
-            result = stats.welch_t_test(measure_values(records, measure),
-                                        measure_values(base, measure))
-            tests.append({'condition': condition, 'measure': measure,
-                          **{key: getattr(result, key) for key in (
-                              'n_a', 'n_b', 'mean_a', 'mean_b', 'difference', 't', 'df', 'p',
-                              'hedges_g', 'cohens_d', 'note')}})
-    for test, adjusted in zip(tests, stats.holm_adjust([t['p'] for t in tests])):
-        test['p_holm'] = adjusted
-    return tests
+    return stats.welch_rows(
+        ({'condition': condition, 'measure': measure}, measure_values(records, measure),
+         measure_values(base, measure))
+        for condition, records in by_condition.items() if condition != baseline
+        for measure in MEASURES)
 
 
 def analyse(by_condition: Mapping[str, Sequence[Mapping]]) -> dict:

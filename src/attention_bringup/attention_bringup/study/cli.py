@@ -26,12 +26,6 @@ from attention_bringup.plan import positive_int
 from feedback_node.judging import TRAINERS
 
 SPEC = specs.load('thesis')
-DEFAULT_TRIALS = len(SPEC.seeds)
-DEFAULT_STEPS = SPEC.budget
-DEFAULT_OUT = SPEC.out
-DEFAULT_REPORT = SPEC.report
-DEFAULT_RUNS = SPEC.runs_dir
-EXIT_INTERRUPTED = runner.EXIT_INTERRUPTED
 
 
 def argument_parser() -> argparse.ArgumentParser:
@@ -41,22 +35,21 @@ def argument_parser() -> argparse.ArgumentParser:
                     'real node graph), analyse it and write the report. Existing trial results '
                     'are skipped, so an interrupted study resumes with the same command.')
     parser.add_argument('--conditions', nargs='+', choices=CONDITIONS,
-                        default=list(THESIS_CONDITIONS),
-                        metavar='NAME',
+                        default=list(THESIS_CONDITIONS), metavar='NAME',
                         help=f"conditions (default the thesis's six: "
                              f'{" ".join(THESIS_CONDITIONS)})')
-    parser.add_argument('--trials', type=positive_int, default=DEFAULT_TRIALS,
-                        help=f'trials per condition, seeds 0..N-1 (default {DEFAULT_TRIALS})')
-    parser.add_argument('--steps', type=positive_int, default=DEFAULT_STEPS,
-                        help=f'agent steps per trial (default {DEFAULT_STEPS})')
+    parser.add_argument('--trials', type=positive_int, default=len(SPEC.seeds),
+                        help=f'trials per condition, seeds 0..N-1 (default {len(SPEC.seeds)})')
+    parser.add_argument('--steps', type=positive_int, default=SPEC.budget,
+                        help=f'agent steps per trial (default {SPEC.budget})')
     runner.add_backend_options(parser)
-    parser.add_argument('--out', default=DEFAULT_OUT,
-                        help=f'folder of trial results and figures (default {DEFAULT_OUT})')
-    parser.add_argument('--report', default=DEFAULT_REPORT,
-                        help=f'report file (default {DEFAULT_REPORT})')
+    parser.add_argument('--out', default=SPEC.out,
+                        help=f'folder of trial results and figures (default {SPEC.out})')
+    parser.add_argument('--report', default=SPEC.report,
+                        help=f'report file (default {SPEC.report})')
     parser.add_argument('--runs-dir', default=None,
                         help=f"where the trials' full run folders go (large, not for "
-                             f'committing; default {DEFAULT_RUNS} with the default --out, '
+                             f'committing; default {SPEC.runs_dir} with the default --out, '
                              'else <out>/runs)')
     parser.add_argument('--analyze-only', action='store_true',
                         help='run no trials; redraw figures and rewrite the report')
@@ -87,7 +80,7 @@ def launcher_args(options: argparse.Namespace) -> List[str]:
 
 
 def default_runs_dir(out: str) -> str:
-    return DEFAULT_RUNS if out == DEFAULT_OUT else str(Path(out) / 'runs')
+    return SPEC.runs_dir if out == SPEC.out else str(Path(out) / 'runs')
 
 
 def regenerate_command(options: argparse.Namespace, parallel: int) -> str:

@@ -9,7 +9,7 @@ the numbers: "significant" means Welch p < 0.05 (unadjusted; Holm-adjusted p is 
 
 from typing import List, Mapping, Optional
 
-from attention_bringup.experiment.markdown import num
+from attention_bringup.experiment.markdown import num, percent
 from attention_bringup.experiment.trials import POSITIONS
 from attention_bringup.study.analysis import BASELINE, SETTLED_SHARE, TESTED_POSITIONS
 from attention_tasks.montezuma.critical_positions import DEFAULT_RADIUS
@@ -236,10 +236,6 @@ def floor_effect_note(analysis: Mapping) -> str:
             'difference" there reflects a floor, not evidence that the conditions are equal.')
 
 
-def _percent(share: float) -> str:
-    return f'{100 * share:.1f} %'
-
-
 def _h_text(estimate: Mapping) -> str:
     return 'n/a' if estimate['mean'] is None else f'{estimate["mean"]:+.2f}'
 
@@ -252,7 +248,7 @@ def _beyond_zero(share: Mapping) -> float:
 def _split(where: Mapping) -> str:
     """Return 'near position 0 / near 1 to 5 / mean h' of a where-the-steps-go summary."""
     share = where['share']
-    return (f'{_percent(share["0"])} / {_percent(_beyond_zero(share))} / '
+    return (f'{percent(share["0"], 1)} / {percent(_beyond_zero(share), 1)} / '
             f'{_h_text(where["feedback_mean"])}')
 
 
@@ -306,9 +302,9 @@ def reward_property_paragraph(analysis: Mapping) -> str:
     return ' '.join([
         REWARD_RULE,
         f'Over the {where["n"]} full trials with step counts, the agent spent on average '
-        f'{_percent(share["0"])} of its recorded steps near position 0, '
-        f'{_percent(_beyond_zero(share))} near '
-        f'positions 1 to 5 and {_percent(share["-1"])} near none; mean h was '
+        f'{percent(share["0"], 1)} of its recorded steps near position 0, '
+        f'{percent(_beyond_zero(share), 1)} near '
+        f'positions 1 to 5 and {percent(share["-1"], 1)} near none; mean h was '
         f'{_h_text(where["feedback_mean"])}. Per condition (near 0 / near 1 to 5 / mean h): '
         f'{per_condition}.',
         _settled_text(where),

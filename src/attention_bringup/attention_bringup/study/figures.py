@@ -8,6 +8,8 @@ furthest position had reached the position by each step, with Wilson 95 % bands 
 from pathlib import Path
 from typing import Dict, List, Mapping, Sequence
 
+from attention_bringup.experiment.figures import pyplot, save
+
 # Colours as in the thesis where it names them: vanilla blue, blind_obs red, language orange,
 # blind-agent saliency green.
 COLOURS = {
@@ -27,25 +29,18 @@ FIGURES = {
 """File stem -> (conditions, positions, title)."""
 
 
-def _pyplot():
-    import matplotlib
-    matplotlib.use('Agg')
-    import matplotlib.pyplot as plt
-    return plt
-
-
 def _present(analysis: Mapping, conditions: Sequence[str]) -> List[str]:
     """Return the conditions that have at least one usable trial, in the given order."""
     return [c for c in conditions if c in analysis['conditions']
             and analysis['conditions'][c]['usable'] > 0]
 
 
-def _panel_grid(plt, panels: int):
+def _panel_grid(panels: int):
     """Return (figure, axes) of a grid of up to three columns with room for ``panels``."""
     columns = min(3, panels)
     rows = (panels + columns - 1) // columns
-    return plt.subplots(rows, columns, figsize=(4.2 * columns, 3.3 * rows),
-                        sharey=True, squeeze=False)
+    return pyplot().subplots(rows, columns, figsize=(4.2 * columns, 3.3 * rows),
+                             sharey=True, squeeze=False)
 
 
 def _style_panel(axis, title: str, budget: int) -> None:
@@ -63,8 +58,7 @@ def plot_reach(analysis: Mapping, conditions: Sequence[str], positions: Sequence
     present = _present(analysis, conditions)
     if not present:
         return False
-    plt = _pyplot()
-    figure, axes = _panel_grid(plt, len(positions))
+    figure, axes = _panel_grid(len(positions))
     bands = len(present) <= 3  # more overlapping bands hide the curves (see plot_by_condition)
     for axis, position in zip(axes.flat, positions):
         for condition in present:
@@ -79,7 +73,7 @@ def plot_reach(analysis: Mapping, conditions: Sequence[str], positions: Sequence
         _style_panel(axis, f'critical position {position}', analysis['budget'])
     note = ('shaded: Wilson 95 % interval over trials' if bands else
             'intervals per condition in reach_by_condition.png')
-    _finish_panels(plt, figure, axes, len(positions),
+    _finish_panels(figure, axes, len(positions),
                    f'Progress to critical positions: {title}\n({note})', path)
     return True
 
@@ -89,9 +83,8 @@ def plot_by_condition(analysis: Mapping, conditions: Sequence[str], path: Path) 
     present = _present(analysis, conditions)
     if not present:
         return False
-    plt = _pyplot()
-    figure, axes = _panel_grid(plt, len(present))
-    colours = plt.get_cmap('viridis')
+    figure, axes = _panel_grid(len(present))
+    colours = pyplot().get_cmap('viridis')
     for axis, condition in zip(axes.flat, present):
         curves = analysis['conditions'][condition]['reach_curves']
         for position in range(6):
@@ -102,13 +95,13 @@ def plot_by_condition(analysis: Mapping, conditions: Sequence[str], path: Path) 
             axis.fill_between(curve['steps'], curve['low'], curve['high'], step='post',
                               color=colour, alpha=0.12, linewidth=0)
         _style_panel(axis, f'{condition} (n={curves["0"]["n"]})', analysis['budget'])
-    _finish_panels(plt, figure, axes, len(present),
+    _finish_panels(figure, axes, len(present),
                    'Progress to each critical position, per condition '
                    '(shaded: Wilson 95 % interval over trials)', path)
     return True
 
 
-def _finish_panels(plt, figure, axes, used: int, title: str, path: Path) -> None:
+def _finish_panels(figure, axes, used: int, title: str, path: Path) -> None:
     """Label a grid of reach panels, hide the unused ones, and save and close the figure."""
     for axis in axes[:, 0]:
         axis.set_ylabel('fraction of trials reached')
@@ -116,9 +109,7 @@ def _finish_panels(plt, figure, axes, used: int, title: str, path: Path) -> None
         axis.set_visible(False)
     axes.flat[0].legend(loc='upper left', fontsize='small')
     figure.suptitle(title, fontsize='medium')
-    figure.tight_layout()
-    figure.savefig(path, dpi=100)
-    plt.close(figure)
+    save(figure, path)
 
 
 def plot_furthest(analysis: Mapping, conditions: Sequence[str], path: Path) -> bool:
@@ -126,8 +117,7 @@ def plot_furthest(analysis: Mapping, conditions: Sequence[str], path: Path) -> b
     present = _present(analysis, conditions)
     if not present:
         return False
-    plt = _pyplot()
-    figure, axis = plt.subplots(figsize=(7.5, 4.2))
+    figure, axis = pyplot().subplots(figsize=(7.5, 4.2))
     for condition in present:
         curve = analysis['conditions'][condition]['furthest_curve']
         colour = COLOURS.get(condition)
@@ -144,9 +134,7 @@ def plot_furthest(analysis: Mapping, conditions: Sequence[str], path: Path) -> b
     axis.legend(loc='upper left', fontsize='small')
     axis.set_title('Mean furthest critical position (-1: none yet); shaded: t 95 % interval',
                    fontsize='medium')
-    figure.tight_layout()
-    figure.savefig(path, dpi=100)
-    plt.close(figure)
+    save(figure, path)
     return True
 
 

@@ -5,13 +5,12 @@ Every number in it comes from the trial result files; the discussion is generate
 ``discussion.paragraphs``. Figures are linked relative to the report's folder.
 """
 
-import os
 from pathlib import Path
 from typing import Mapping, Optional, Sequence
 
 from attention_bringup.experiment import stats
 from attention_bringup.experiment.markdown import (
-    mean_interval, minutes_seconds, num, p_value, table_text)
+    image, mean_interval, minutes_seconds, num, p_value, percent, table_text, write)
 from attention_bringup.experiment.trials import PLACES, POSITIONS
 from attention_bringup.study import discussion
 from attention_bringup.study.analysis import BASELINE, MEASURES, SETTLED_SHARE
@@ -138,10 +137,7 @@ def _settled(where: Mapping) -> str:
 
 def where_row(name: str, where: Mapping) -> tuple:
     """One row of the where-the-steps-go table: n, shares -1..5, mean h, settled trials."""
-    if not where['n']:
-        shares = ('n/a',) * len(PLACES)
-    else:
-        shares = tuple(f'{100 * where["share"][str(p)]:.1f} %' for p in PLACES)
+    shares = tuple(percent(where['share'][str(p)], 1) if where['n'] else 'n/a' for p in PLACES)
     return ((name, where['n']) + shares
             + (_mean_sd(where['feedback_mean'], 2), _settled(where) if where['n'] else 'n/a'))
 
@@ -167,6 +163,14 @@ def where_table(analysis: Mapping, present: Sequence[str]) -> str:
     ])
 
 
+def _steps_cell(entry: Mapping) -> str:
+    """Return 'mean (median) [n]' of the trials that reached a position ('–': none did)."""
+    reachers = entry['reachers']
+    if not reachers['n']:
+        return '–'
+    return f'{reachers["mean"]:.0f} ({entry["median_reachers"]:.0f}) [{reachers["n"]}]'
+
+
 def results_tables(analysis: Mapping, conditions: Sequence[str]) -> str:
     present = [c for c in conditions if c in analysis['conditions']]
     overview = []
@@ -180,18 +184,8 @@ def results_tables(analysis: Mapping, conditions: Sequence[str]) -> str:
                          _mean_sd(s['updates_per_step'], 2), _mean_sd(s['wall_time_s'], 0)))
     reach = [(f'`{c}`',) + tuple(_proportion(analysis['conditions'][c]['steps_to'][str(p)]
                                              ['reach']) for p in POSITIONS) for c in present]
-    steps = []
-    for c in present:
-        cells = []
-        for p in POSITIONS:
-            entry = analysis['conditions'][c]['steps_to'][str(p)]
-            reachers = entry['reachers']
-            if not reachers['n']:
-                cells.append('–')
-            else:
-                cells.append(f'{reachers["mean"]:.0f} ({entry["median_reachers"]:.0f}) '
-                             f'[{reachers["n"]}]')
-        steps.append((f'`{c}`',) + tuple(cells))
+    steps = [(f'`{c}`',) + tuple(_steps_cell(analysis['conditions'][c]['steps_to'][str(p)])
+                                 for p in POSITIONS) for c in present]
     furthest = [(f'`{c}`',) + tuple(str(analysis['conditions'][c]['furthest_counts'][str(p)])
                                     for p in PLACES) for c in present]
     return '\n'.join([
@@ -244,8 +238,7 @@ def tests_table(analysis: Mapping) -> str:
 def figures_section(figures: Mapping[str, Path], report_path: Path) -> str:
     lines = ['## Figures', '']
     for name, path in figures.items():
-        relative = os.path.relpath(Path(path).resolve(), Path(report_path).resolve().parent)
-        lines += [f'![{name}]({relative})', '', f'*{FIGURE_CAPTIONS.get(name, name)}*', '']
+        lines += [image(name, path, report_path), '', f'*{FIGURE_CAPTIONS.get(name, name)}*', '']
     return '\n'.join(lines).rstrip()
 
 
@@ -337,7 +330,5 @@ def write_report(path: Path, analysis: Mapping, by_condition: Mapping[str, Seque
         regenerate_section(command, log, analysis, cpus, trials_dir),
         per_trial_appendix(by_condition),
     ]) + '\n'
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(text)
+    write(path, text)
     return text

@@ -11,7 +11,7 @@ from pathlib import Path
 from typing import List, Mapping
 
 from attention_bringup.experiment import stats
-from attention_bringup.experiment.markdown import mean_interval, table_text
+from attention_bringup.experiment.markdown import mean_interval, table_text, write
 from attention_bringup.experiment.runner import REPLAY
 from attention_bringup.experiment.spec import Spec, SpecError
 from attention_bringup.experiment.trials import read_json
@@ -89,6 +89,4 @@ def write_report(spec: Spec, result: dict, by_arm: Mapping, context: Mapping) ->
              "learner's greedy action is the session's (mean over seeds [95 % interval]).", '',
              table_text(['arm', 'trials', 'agreement', 'last quarter'], rows), '',
              '## Every replay', '', study_table(result['summaries']), '']
-    path = Path(spec.report)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text('\n'.join(lines))
+    write(spec.report, '\n'.join(lines))

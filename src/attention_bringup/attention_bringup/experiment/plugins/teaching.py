@@ -10,13 +10,14 @@ lives lost, feedback given, the learner's updates per step. The in-process ablat
 """
 
 import json
-import os
 from pathlib import Path
 from typing import Dict, List, Mapping, Optional, Sequence
 
 from attention_bringup.experiment import stats
-from attention_bringup.experiment.markdown import num, p_value, table
+from attention_bringup.experiment.figures import pyplot, save
+from attention_bringup.experiment.markdown import image, num, p_value, table, write
 from attention_bringup.experiment.spec import Spec
+from attention_bringup.experiment.trials import is_usable
 from attention_bringup.progress import ALIVE_STEPS
 from attention_tasks.montezuma.critical_positions import DEFAULT_RADIUS
 
@@ -73,16 +74,8 @@ def summarize(records: Sequence[Mapping]) -> dict:
 
 def key_curve(records: Sequence[Mapping], budget: int, every: int = 100) -> dict:
     """Fraction of trials holding a key by each step, with Wilson bands."""
-    steps = list(range(0, budget + 1, every))
-    fraction, low, high = [], [], []
-    for step in steps:
-        hits = sum(1 for r in records
-                   if r.get('first_key_step') is not None and r['first_key_step'] <= step)
-        lo, hi = stats.wilson_interval(hits, len(records))
-        fraction.append(hits / len(records) if records else 0.0)
-        low.append(lo)
-        high.append(hi)
-    return {'steps': steps, 'fraction': fraction, 'low': low, 'high': high}
+    return stats.reach_curve([r.get('first_key_step') for r in records],
+                             range(0, budget + 1, every))
 
 
 def compare(test: Sequence[Mapping], baseline: Sequence[Mapping],
@@ -114,8 +107,7 @@ def targets(spec: Spec, summaries: Mapping[str, dict]) -> Dict[str, dict]:
 
 
 def analyse(spec: Spec, by_arm: Mapping[str, Sequence[Mapping]], context: Mapping) -> dict:
-    by_arm = {name: [r for r in records if r['outcome'] in ('completed', 'completed_unclean')]
-              for name, records in by_arm.items()}
+    by_arm = {name: [r for r in records if is_usable(r)] for name, records in by_arm.items()}
     summaries = {name: summarize(records) for name, records in by_arm.items() if records}
     comparisons = {f'{c.arm} vs {c.baseline}': compare(by_arm[c.arm], by_arm[c.baseline],
                                                        spec.measures)
@@ -130,11 +122,7 @@ def analyse(spec: Spec, by_arm: Mapping[str, Sequence[Mapping]], context: Mappin
 def draw(result: Mapping, path: Path) -> bool:
     if not result['curves']:
         return False
-    import matplotlib
-    matplotlib.use('Agg')
-    import matplotlib.pyplot as plt
-
-    figure, axis = plt.subplots(figsize=(8, 4.5))
+    figure, axis = pyplot().subplots(figsize=(8, 4.5))
     for index, name in enumerate(result['order']):
         curve = result['curves'][name]
         axis.plot(curve['steps'], curve['fraction'], color=f'C{index}', label=name)
@@ -145,9 +133,7 @@ def draw(result: Mapping, path: Path) -> bool:
     axis.set_ylim(-0.02, 1.02)
     axis.legend(loc='lower right', fontsize='small')
     axis.set_title('The key, by step (Wilson 95 % bands)')
-    figure.tight_layout()
-    figure.savefig(path, dpi=100)
-    plt.close(figure)
+    save(figure, path)
     return True
 
 
@@ -189,7 +175,6 @@ def ablation_rows(out_dir: Path) -> List[List[str]]:
         data = json.loads(path.read_text())
         results = data['results']
         keyed = sorted(r['first_key_step'] for r in results if r['first_key_step'])
-        lives = sum(r['lives_lost'] for r in results) / len(results)
         argv = list(data.get('argv', []))
         for flag in ('--what', '--out'):  # the row says what; the file is the row
             if flag in argv:
@@ -197,16 +182,11 @@ def ablation_rows(out_dir: Path) -> List[List[str]]:
         command = 'teach_inprocess.py ' + ' '.join(argv)
         rows.append([f'`{path.stem}`', data.get('what', ''), str(len(results)),
                      f'{len(keyed)}', ', '.join(map(str, keyed)) or '-',
-                     _num(sum(r['agreement'] for r in results) / len(results), 2),
-                     _num(lives), _mean_of(results, 'furthest_stage', 1),
-                     _mean_of(results, 'learned_purity', 2), f'`{command}`'])
+                     *(_num(stats.mean_of(r.get(key) for r in results), digits) for key, digits
+                       in (('agreement', 2), ('lives_lost', 1), ('furthest_stage', 1),
+                           ('learned_purity', 2))),
+                     f'`{command}`'])
     return rows
-
-
-def _mean_of(results, key: str, digits: int) -> str:
-    """Return the mean of a per-trial field of later teach_inprocess.py runs ('-' if none)."""
-    found = [r[key] for r in results if r.get(key) is not None]
-    return _num(sum(found) / len(found), digits) if found else '-'
 
 
 def target_lines(result: Mapping) -> List[str]:
@@ -225,7 +205,6 @@ def target_lines(result: Mapping) -> List[str]:
 def write_report(spec: Spec, result: Mapping, by_arm: Mapping, context: Mapping) -> None:
     path, out_dir = Path(spec.report), Path(spec.out)
     drawn = draw(result, out_dir / FIGURE)
-    figure = os.path.relpath(out_dir / FIGURE, path.parent)
     log = context['log']
     elapsed = sum(entry.get('wall_time_s', 0.0) for entry in log)
     command = context.get('command', f'.venv/bin/attention_experiment {spec.name}')
@@ -261,7 +240,7 @@ def write_report(spec: Spec, result: Mapping, by_arm: Mapping, context: Mapping)
              '(immediate and minibatch) per agent '
              'step.', '']
     if drawn:
-        text += [f'![the key by step]({figure})', '']
+        text += [image('the key by step', out_dir / FIGURE, path), '']
     text += ['## Language against vanilla', '']
     text += comparison_table(result) if result['comparisons'] else ['(not run yet)']
     text += ['', 'Steps to key count a trial without the key as the budget (10,000), so the '
@@ -287,4 +266,4 @@ def write_report(spec: Spec, result: Mapping, by_arm: Mapping, context: Mapping)
     discussion = out_dir / 'discussion.md'
     if discussion.exists():
         text += ['## Discussion', '', discussion.read_text().strip(), '']
-    path.write_text('\n'.join(text) + '\n')
+    write(path, '\n'.join(text) + '\n')

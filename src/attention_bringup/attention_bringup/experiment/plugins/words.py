@@ -11,13 +11,13 @@ held-out ones. Each arm's trials give one rate each; arms are compared on the he
 Welch's t-test and Hedges' g (``experiment.stats``), as the other reports are.
 """
 
-import csv
 from pathlib import Path
 from typing import Dict, List, Mapping
 
 from attention_bringup.experiment import markdown, stats
 from attention_bringup.experiment.plugins.doorkey import heldout_after, parameters  # noqa: F401
 from attention_bringup.experiment.spec import Spec
+from attention_bringup.experiment.trials import read_progress
 from attention_bringup.params import load_params_file, node_params, ParamsFileError
 from attention_common.run_files import PARAMS_FILE, PROGRESS_FILE
 
@@ -29,18 +29,13 @@ CHANCE = 1.0 / OBJECTS
 def episodes_of(path: Path) -> List[dict]:
     """Return the trial's episodes: first step, held-out, solved, ended (a later one began)."""
     episodes: Dict[tuple, dict] = {}
-    try:
-        with open(path, newline='') as handle:
-            for row in csv.DictReader(handle):
-                key = (row['session'], row['episode'])
-                episode = episodes.setdefault(key, {
-                    'first_step': int(row['agent_step']), 'heldout': row['heldout'] == '1',
-                    'solved': False, 'length': 0})
-                episode['length'] = max(episode['length'], int(row['episode_step']))
-                if row['position'] not in ('', None) and int(float(row['position'])) >= 1:
-                    episode['solved'] = True
-    except OSError:
-        return []
+    columns = ('agent_step', 'session', 'episode', 'episode_step', 'heldout', 'position')
+    for row in read_progress(path, columns):
+        episode = episodes.setdefault((row['session'], row['episode']), {
+            'first_step': row['agent_step'], 'heldout': row['heldout'] == 1, 'solved': False,
+            'length': 0})
+        episode['length'] = max(episode['length'], row['episode_step'])
+        episode['solved'] = episode['solved'] or row['position'] >= 1
     found = list(episodes.values())
     for episode in found[:-1]:
         episode['ended'] = True
@@ -165,4 +160,4 @@ def write_report(spec: Spec, result: dict, by_arm: Mapping, context: Mapping) ->
     discussion = report.with_name(f'{report.stem}_discussion.md')
     if discussion.exists():
         lines += [discussion.read_text().rstrip(), '']
-    Path(spec.report).write_text('\n'.join(lines))
+    markdown.write(report, '\n'.join(lines))
