@@ -498,8 +498,10 @@ def test_task_doorkey_reaches_every_node_with_its_files_and_rate(tmp_path):
             plan.effective['tamer_node']['window_max_s']) == (0.2, 2.5)  # 1.5 s late + 1 step
     for options in ({}, {'human_like': True}, {'synthetic': False}):  # issue 23's learner
         learner = _plan(tmp_path, task='doorkey', **options).effective['tamer_node']
-        assert (learner['verdict_memory'], learner['positive_excludes']) == (1.0, 0.3)
-    assert _plan(tmp_path).effective['tamer_node'].get('verdict_memory', 0.0) == 0.0  # Room 1
+        assert (learner['verdict_memory'], learner['positive_excludes'],
+                learner['revisit_penalty']) == (1.0, 0.3, 0.5)
+    room_1 = _plan(tmp_path).effective['tamer_node']
+    assert room_1.get('verdict_memory', 0.0) == room_1.get('revisit_penalty', 0.0) == 0.0
     # --press-times: late verdicts carry the moment given; credited from then, one window.
     pressed = _plan(tmp_path, task='doorkey', human_like=True, press_times=True).effective
     assert pressed['feedback_node']['press_times'] is True

@@ -102,9 +102,11 @@ def test_the_held_out_part_is_the_end_of_the_budget(tmp_path):
         heldout_after(10000, 1.0)
     spec = replace(specs.load('doorkey'), out=str(tmp_path), budget=10000)
     assert 'heldout_after: 7500' in engine.write_params(spec).read_text()
-    for name, memory in [('doorkey', 0.0), ('doorkey_every_step', 0.0), ('doorkey_memory', 1.0),
-                         ('doorkey_every_step_memory', 1.0)]:  # each the learner it ran with
-        assert specs.load(name).parameters['tamer_node']['verdict_memory'] == memory
+    for name, memory, revisits in [  # each the learner it ran with
+            ('doorkey', 0.0, 0.0), ('doorkey_every_step', 0.0, 0.0), ('doorkey_memory', 1.0, 0.0),
+            ('doorkey_every_step_memory', 1.0, 0.0), ('doorkey_every_step_revisits', 1.0, 0.5)]:
+        learner = specs.load(name).parameters['tamer_node']
+        assert (learner['verdict_memory'], learner['revisit_penalty']) == (memory, revisits)
     every_trial = engine.plan(spec, params=engine.write_params(spec))[0]
     assert every_trial and all(
         job.launcher_args[-2:] == ('--params-file', str(tmp_path / 'doorkey_study.yaml'))

@@ -17,6 +17,7 @@ from tamer_node.memory import VerdictMemory
 from tamer_node.model import Encoder, FEATURE_SIZE, HModel, joystick_parts, PartsHead
 from tamer_node.pairing import by_prediction, to_decisions
 from tamer_node.posterior import feedback_likelihood, posterior_weights
+from tamer_node.revisits import Revisits
 import torch
 
 torch.set_num_threads(1)
@@ -439,6 +440,47 @@ def test_an_action_judged_bad_in_this_very_state_is_not_taken_again(tmp_path):
     assert second == first  # H alone has not moved: the same greedy action
     first, second = act_again_after_a_bad_verdict(tmp_path / 'memory', verdict_memory=1.0)
     assert second != first
+
+
+def test_revisits_count_each_action_per_state_over_the_last_steps_only():
+    revisits = Revisits(penalty=0.5, steps=3, num_actions=4)
+    here, there = torch.zeros(8), torch.ones(8)
+    key, penalty = revisits.penalties(here)
+    assert penalty.tolist() == [0.0] * 4
+    revisits.took(key, 2)
+    revisits.took(key, 2)
+    other, _ = revisits.penalties(there)
+    revisits.took(other, 1)
+    assert revisits.penalties(here)[1].tolist() == [0.0, 0.0, 1.0, 0.0]
+    assert revisits.penalties(there)[1].tolist() == [0.0, 0.5, 0.0, 0.0]
+    revisits.took(other, 1)  # the window holds 3: the first visit here is forgotten
+    assert revisits.penalties(here)[1].tolist() == [0.0, 0.0, 0.5, 0.0]
+    assert revisits.penalties(there)[1].tolist() == [0.0, 1.0, 0.0, 0.0]
+
+
+def act_on_one_frame_again_and_again(tmp_path: Path, times: int, **changes) -> list:
+    """Return the actions of an agent whose H never moves, shown one frame ``times`` times."""
+    frame = np.random.default_rng(5).integers(0, 256, (210, 160, 3), np.uint8)
+    config = TamerConfig(run_dir=str(tmp_path), pace_updates=0.0, checkpoint_period_s=0.0,
+                         update_rate_hz=0.0, immediate_update=False, greedy_margin=0.0,
+                         **changes)
+    agent = TamerAgent(config, tmp_path, encoder=Encoder())
+    agent.start()
+    try:
+        return [agent.on_observation((1 + k) * 66_666_667, frame) for k in range(times)]
+    finally:
+        agent.close()
+
+
+def test_back_in_a_state_it_just_left_the_agent_tries_another_action(tmp_path):
+    # Without a verdict, greedy H repeats one action in a state forever (DoorKey's agent turned
+    # on the spot on 89-93 % of its steps); counted against it, the actions taken there vary.
+    alone = act_on_one_frame_again_and_again(tmp_path / 'plain', 6)
+    assert len(set(alone)) == 1
+    revisiting = act_on_one_frame_again_and_again(tmp_path / 'revisits', 6,
+                                                  revisit_penalty=0.5)
+    assert len(set(revisiting)) >= 3
+    assert revisiting[1] != revisiting[0]
 
 
 def test_the_ring_takes_all_its_memory_when_made_so_a_long_run_stays_flat():

@@ -53,11 +53,14 @@ FOXGLOVE_COST_TARGET = 0.05
 
 
 def graph_run(steps: int, workdir: Path, pace_updates: float, name: str = 'graph',
-              extra: tuple = (), viewer: str = '') -> dict:
+              extra: tuple = (), viewer: str = '', tamer: dict = None) -> dict:
     """``viewer``: graph_viewer's parameters, as YAML lines (with ``--foxglove``)."""
     run_dir = workdir / name
     params = workdir / 'bench_params.yaml'
+    tamer_lines = ''.join(f'    {key}: {json.dumps(value)}\n'
+                          for key, value in (tamer or {}).items())
     params.write_text(f'tamer_node:\n  ros__parameters:\n    pace_updates: {pace_updates!r}\n'
+                      + tamer_lines
                       + (f'graph_viewer:\n  ros__parameters:\n{viewer}' if viewer else ''))
     started = time.monotonic()
     result = subprocess.run(
@@ -85,6 +88,7 @@ def graph_run(steps: int, workdir: Path, pace_updates: float, name: str = 'graph
         'saliency_per_s': summary['message_counts']['saliency'] / training_s,
         'updates_per_s': float(metrics.get('train/updates', 0)) / training_s,
         'skipped_updates': metrics.get('train/skipped_updates'),
+        **paced(metrics, summary['steps']),
         'cpu_ms_per_step': {node: 1000.0 * seconds / summary['steps']
                             for node, seconds in summary.get('cpu_s', {}).items() if seconds},
         'rss_mb': {node: values.get('VmRSS', 0) / 1024.0
@@ -94,7 +98,7 @@ def graph_run(steps: int, workdir: Path, pace_updates: float, name: str = 'graph
     }
 
 
-def in_process_run(steps: int, workdir: Path, pace_updates: float) -> dict:
+def in_process_run(steps: int, workdir: Path, pace_updates: float, tamer: dict = None) -> dict:
     """Do the graph's work, one step after the other in this process (no ROS, no copies)."""
     import torch
     torch.set_num_threads(1)
@@ -118,7 +122,8 @@ def in_process_run(steps: int, workdir: Path, pace_updates: float) -> dict:
     timeline = Timeline(int(10.0 * NS_PER_S), capacity=64, require_utterance=True)
     saliency_config = SaliencyConfig(mode='language')
     run_dir = workdir / 'in_process'
-    config = TamerConfig(alpha=1e-4, run_dir=str(run_dir), pace_updates=pace_updates)
+    config = TamerConfig(alpha=1e-4, run_dir=str(run_dir), pace_updates=pace_updates,
+                         **(tamer or {}))
     agent = TamerAgent(config, str(run_dir),
                        log=lambda level, text: None)
     agent.start()
@@ -169,7 +174,14 @@ def in_process_run(steps: int, workdir: Path, pace_updates: float) -> dict:
         'saliency_per_s': saliency_images / elapsed,
         'updates_per_s': float(metrics.get('train/updates', 0)) / elapsed,
         'skipped_updates': metrics.get('train/skipped_updates'),
+        **paced(metrics, steps),
     }
+
+
+def paced(metrics: dict, steps: int) -> dict:
+    """How often, and how long per step, the actor waited for its learner (pace_updates)."""
+    return {'paced_share': float(metrics.get('act/paced', 0)) / max(steps, 1),
+            'paced_ms_per_step': float(metrics.get('act/paced_ms', 0)) / max(steps, 1)}
 
 
 def _fmt(value, digits=1) -> str:
@@ -196,6 +208,9 @@ def table(graph: dict, local: dict) -> str:
         ('learner updates/s', _fmt(graph['updates_per_s']), _fmt(local['updates_per_s']), ''),
         ('learner updates per step', _fmt(graph['updates_per_s'] / graph['steps_per_s'], 2),
          _fmt(local['updates_per_s'] / local['steps_per_s'], 2), ''),
+        ('steps the actor waited for its learner (share); wait per step (ms)',
+         f'{_fmt(graph["paced_share"], 2)}; {_fmt(graph["paced_ms_per_step"], 2)}',
+         f'{_fmt(local["paced_share"], 2)}; {_fmt(local["paced_ms_per_step"], 2)}', ''),
         ('minibatch updates skipped (the learner fell behind)', graph['skipped_updates'],
          local['skipped_updates'], ''),
     ]
@@ -342,7 +357,12 @@ def main() -> int:
                              'itself (clients of foxglove.sdk.v1 only)')
     parser.add_argument('--foxglove-image-rate', type=float, default=0.0, metavar='HZ',
                         help="graph_viewer's max_image_rate_hz (default: the node's)")
+    parser.add_argument('--tamer', action='append', default=[], metavar='NAME=VALUE',
+                        help='a tamer_node parameter for both runs (repeatable; a lever to '
+                             'measure, as learner_nice=0)')
     args = parser.parse_args()
+    tamer = {key: json.loads(value) if value[:1] in '-0123456789tf[{"' else value
+             for key, value in (item.split('=', 1) for item in args.tamer)}
     with tempfile.TemporaryDirectory(prefix='bench_graph_') as tmp:
         workdir = Path(tmp)
         if args.foxglove:
@@ -351,12 +371,12 @@ def main() -> int:
                                  args.foxglove_channels, args.foxglove_legacy,
                                  not args.foxglove_no_relay, args.foxglove_image_rate)
         load_before = os.getloadavg()[0]
-        local = in_process_run(args.inprocess_steps, workdir, args.pace_updates)
-        graph = graph_run(args.graph_steps, workdir, args.pace_updates)
+        local = in_process_run(args.inprocess_steps, workdir, args.pace_updates, tamer)
+        graph = graph_run(args.graph_steps, workdir, args.pace_updates, tamer=tamer)
         load_after = os.getloadavg()[0]
     print(f'Machine: {machine()}; load average {load_before:.1f} before, '
           f'{load_after:.1f} after (1 min); executor {executor_name()}')
-    print(f'pace_updates {args.pace_updates:g}. '
+    print(f'pace_updates {args.pace_updates:g}; tamer_node {tamer or "defaults"}. '
           f'Graph run: {graph["steps"]} steps in {graph["wall_s"]:.0f} s wall '
           f'(start-up {graph["startup_s"]:.1f} s), {graph["latency_n"]} latency samples; '
           f'in process: {local["steps"]} steps\n')

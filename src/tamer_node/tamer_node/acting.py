@@ -27,6 +27,7 @@ from tamer_node.model import HModel, preprocess, to_input
 from tamer_node.pairing import both_item
 from tamer_node.persistence import (
     KIND_ACTION, KIND_OBSERVATION, KIND_SALIENCY, KIND_TAKEN, StepJournal)
+from tamer_node.revisits import Revisits
 from tamer_node.words import bag_of_words
 import torch
 
@@ -107,11 +108,17 @@ class ActingModel:
         with torch.inference_mode():
             return self.model(to_input(image))[0]
 
-    def choose(self, h: torch.Tensor) -> int:
-        """Return the greedy action for one state's (18,) H values (see the class docstring)."""
+    def choose(self, h: torch.Tensor, penalty: Optional[torch.Tensor] = None) -> int:
+        """
+        Return the greedy action for one state's (18,) H values (see the class docstring).
+
+        ``penalty``: amounts to lower each action by after clipping (revisits.py).
+        """
         if self.greedy_margin <= 0.0:
-            return int(torch.argmax(h))
+            return int(torch.argmax(h if penalty is None else h - penalty))
         clipped = h.clamp(-FEEDBACK_RANGE, FEEDBACK_RANGE)  # beyond: extrapolation
+        if penalty is not None:
+            clipped = clipped - penalty
         tied = torch.nonzero(clipped >= clipped.max() - self.greedy_margin).flatten()
         if self.keep_tied and self.previous is not None and bool((tied == self.previous).any()):
             return self.previous
@@ -148,6 +155,10 @@ class ActingPath:
         self.config = config
         self.memory = memory
         """Verdicts on exact states, blended into H before choosing (None: H alone)."""
+        self.revisits = (Revisits(config.revisit_penalty, config.revisit_steps,
+                                  load_task(config.task).num_actions)
+                         if config.revisit_penalty > 0.0 else None)
+        """Actions taken lately in each exact state, counted against them (None: off)."""
         self.actor = actor
         self.slot = slot
         self.history = history
@@ -192,6 +203,8 @@ class ActingPath:
             self._awaiting.clear()
         self.now = None
         self._held, self._decision = None, None
+        if self.revisits is not None:
+            self.revisits.clear()
 
     def on_observation(self, stamp: int, rgb: np.ndarray) -> Optional[int]:
         """Store observation ``stamp``; return the greedy action if the agent acts on it."""
@@ -313,12 +326,12 @@ class ActingPath:
             self.counters[f'drop/{kind}'] += 1
             raise BadInput(f'{kind} dropped: {error}') from error
 
-    def _decide(self, values: torch.Tensor) -> int:
+    def _decide(self, values: torch.Tensor, penalty: Optional[torch.Tensor]) -> int:
         """Return a new decision: at random on a share ``explore`` of them, else H's choice."""
         if self.config.explore > 0.0 and self._explore_rng.random() < self.config.explore:
             self.counters['act/explored'] += 1
             return int(self._explore_rng.integers(self._num_actions))
-        return self.actor.choose(values)
+        return self.actor.choose(values, penalty)
 
     def _act(self, record, started: Optional[float], image=None) -> int:
         if record.action is not None:
@@ -351,7 +364,12 @@ class ActingPath:
         if held is not None and clearly_better(values, held, self.config.decision_switch_margin):
             self.counters['act/switched'] += 1
             held = None  # what H learned overrides the rest of the decision
-        action = held if held is not None else self._decide(values)
+        key, penalty = (None, None) if self.revisits is None else self.revisits.penalties(state)
+        action = held if held is not None else self._decide(values, penalty)
+        if key is not None:
+            if float(penalty.sum()) > 0.0:  # back in a state acted in lately
+                self.counters['act/revisits'] += 1
+            self.revisits.took(key, action)
         if held is not None:
             self.counters['act/held'] += 1
         else:  # a new decision, held until decision_period_s has passed

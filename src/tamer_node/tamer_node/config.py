@@ -75,6 +75,12 @@ class TamerConfig:
     """Weight of the verdicts remembered for each exact state, blended into H when acting
     (memory.py: pseudo-counts, so an action judged bad in this very state is not taken again
     before the untried ones). 0: H alone (the thesis's)."""
+    revisit_penalty: float = 0.0
+    """How much lower an action's H (clipped to [-1, 1]) counts, per time it was taken in this
+    exact state within the last ``revisit_steps`` acted steps (revisits.py: back in a state it
+    just left, the agent tries another action, so a loop opens). 0: H alone (the thesis's)."""
+    revisit_steps: int = 100
+    """The acted steps ``revisit_penalty`` remembers (DoorKey: one episode's length)."""
     learning_rate: float = 3e-4
     """Adam step size of the learner (1e-3 with mostly -1 feedback killed the head's units)."""
     max_grad_norm: float = 1.0
@@ -245,6 +251,8 @@ class TamerConfig:
             'explore': 0.0 <= self.explore < 1.0,
             'positive_excludes': self.positive_excludes >= 0.0,
             'verdict_memory': self.verdict_memory >= 0.0,
+            'revisit_penalty': self.revisit_penalty >= 0.0,
+            'revisit_steps': self.revisit_steps >= 1,
             'decision_period_s': self.decision_period_s >= 0.0,
             'decision_switch_margin': self.decision_switch_margin >= 0.0,
             'credit_noise': 0.0 <= self.credit_noise < 0.5,
