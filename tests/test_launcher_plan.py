@@ -661,3 +661,28 @@ def test_record_options_parse():
     assert parse_options([]).record is None
     assert parse_options(['--record']).record is True
     assert parse_options(['--no-synthetic', '--no-record']).records is False
+
+
+def test_a_knob_changes_one_part_of_the_human_like_setting_and_the_credit_follows(tmp_path):
+    # A person at the console judges most moves, late and sometimes wrong: --knob says so.
+    every_move = _plan(tmp_path, task='doorkey', human_like=True,
+                       knobs=['feedback_probability=1']).effective
+    assert every_move['feedback_node']['feedback_probability'] == 1.0
+    assert (every_move['feedback_node']['feedback_delay_max'],
+            every_move['feedback_node']['feedback_noise']) == (1.5, 0.1)  # the rest as named
+    sooner = _plan(tmp_path, task='doorkey', human_like=True, press_times=True,
+                   knobs=['feedback_delay_min=0.1', 'feedback_delay_max=0.6']).effective
+    assert sooner['feedback_node']['feedback_delay_max'] == 0.6
+    assert (sooner['tamer_node']['window_min_s'], sooner['tamer_node']['window_max_s']) == (
+        0.2, 0.7)  # the credit window follows the delay
+    plain = _plan(tmp_path, task='doorkey', human_like=True,
+                  knobs=['feedback_delay_max=0.6']).effective['tamer_node']
+    assert plain['window_max_s'] == 1.6  # 0.6 s late + one 1 s step
+    assert parse_options(['--human-like', '--knob', 'feedback_noise=0']).knobs == [
+        'feedback_noise=0']
+    for knobs, message in ((['feedback_probabilty=1'], 'one of'), (['feedback_noise=x'],
+                           'not a number'), (['feedback_noise=2'], r'\[0, 1\]')):
+        with pytest.raises(ValueError, match=message):
+            _plan(tmp_path, human_like=True, knobs=knobs)
+    with pytest.raises(ValueError, match='add --human-like'):
+        _plan(tmp_path, knobs=['feedback_probability=1'])

@@ -104,7 +104,8 @@ def test_the_held_out_part_is_the_end_of_the_budget(tmp_path):
     assert 'heldout_after: 7500' in engine.write_params(spec).read_text()
     for name, memory, revisits in [  # each the learner it ran with
             ('doorkey', 0.0, 0.0), ('doorkey_every_step', 0.0, 0.0), ('doorkey_memory', 1.0, 0.0),
-            ('doorkey_every_step_memory', 1.0, 0.0), ('doorkey_every_step_revisits', 1.0, 0.5)]:
+            ('doorkey_every_step_memory', 1.0, 0.0), ('doorkey_every_step_revisits', 1.0, 0.5),
+            ('doorkey_every_move', 1.0, 0.5)]:
         learner = specs.load(name).parameters['tamer_node']
         assert (learner['verdict_memory'], learner['revisit_penalty']) == (memory, revisits)
     every_trial = engine.plan(spec, params=engine.write_params(spec))[0]

@@ -351,7 +351,8 @@ def test_acting_never_waits_for_training_or_disk(agents, pace_updates):
 def test_a_paced_actor_never_outruns_its_learner(agents, pace_updates):
     """Stepping faster than the learner trains drops owed updates, unless the actor waits."""
     agent = agents(update_rate_hz=150.0, update_backlog_s=1.0, immediate_update=False,
-                   pace_updates=pace_updates, pace_max_s=1.0)  # 10 updates owed per step
+                   pace_updates=pace_updates, pace_max_s=10.0)  # 10 updates owed per step
+    # (pace_max_s bounds one wait: 1 s ran out on a machine busy with a study besides)
     for i in range(60):  # from the first feedback on, also before the learner has used it
         play(agent, 1, first=i)
         agent.on_feedback(1.0 if i % 2 else -1.0, 'stamped', stamp(i))

@@ -7,7 +7,7 @@ launcher's own overrides last) and the effective parameters of every node.
 """
 
 import argparse
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import asdict, dataclass, field, fields, replace
 import datetime
 import json
 from pathlib import Path
@@ -21,7 +21,7 @@ from attention_common.run_files import node_log, OPTIONS_FILE, OVERRIDES_FILE
 from attention_tasks.montezuma.critical_positions import DEFAULT_RADIUS
 from attention_tasks.montezuma.task import REALTIME_RATE_HZ  # noqa: F401 (Room 1's, for tests)
 from attention_tasks.task import DEFAULT_TASK, load_task, task_names
-from feedback_node.human_like import HUMAN_LIKE_SETTING
+from feedback_node.human_like import HUMAN_LIKE_SETTING, HumanLike
 from feedback_node.judging import TRAINERS
 from graph_viewer.config import DEFAULT_PORT as FOXGLOVE_PORT
 
@@ -58,7 +58,8 @@ of 8 against 0 of 4 with the plain window), it did no better through the graph o
 (0 of 10 either way) and is not the default: docs/teaching.md."""
 
 
-def human_like_window_s(step_s: float) -> tuple:
+def human_like_window_s(step_s: float,
+                        delay_max: float = HUMAN_LIKE_SETTING.feedback_delay_max) -> tuple:
     """
     Return the credit window of ``--human-like`` for steps of ``step_s`` simulation seconds.
 
@@ -66,11 +67,16 @@ def human_like_window_s(step_s: float) -> tuple:
     the one it judges, so up to ``delay_max + step_s`` after that step began: Room 1 (1/15 s)
     (0.2, 1.6), DoorKey (1 s) (0.2, 2.5).
     """
-    return (0.2, round(HUMAN_LIKE_SETTING.feedback_delay_max + step_s, 1))
+    return (0.2, round(delay_max + step_s, 1))
 
 
-PRESS_TIMES_CREDIT = {'credit_anchor': 'effect', 'window_min_s': 0.2,
-                      'window_max_s': round(HUMAN_LIKE_SETTING.feedback_delay_max + 0.1, 1)}
+def press_times_credit(delay_max: float = HUMAN_LIKE_SETTING.feedback_delay_max) -> dict:
+    """Return tamer_node's credit with ``--press-times``, the teacher up to ``delay_max`` late."""
+    return {'credit_anchor': 'effect', 'window_min_s': 0.2,
+            'window_max_s': round(delay_max + 0.1, 1)}
+
+
+PRESS_TIMES_CREDIT = press_times_credit()
 """tamer_node's credit with ``--press-times``: a verdict's delay counted from the moment it was
 given back to when the judged step's result showed, which is the teacher's own delay (0.3-1.5 s),
 whatever the step's length (DoorKey's 1 s steps no longer widen the window to 2.5 s)."""
@@ -82,6 +88,22 @@ step after the one it judges, so 0.37-1.63 s after that step began; Deep TAMER's
 default, for a person of unknown delay) spreads each feedback over 57 steps instead of 21
 (measured in one process, seeds 100-103: agreement with the expert 0.24-0.46 with [0.2, 1.6],
 0.11-0.38 with [0.2, 4]; docs/teaching.md)."""
+
+
+def human_like_setting(knobs: Sequence[str]) -> HumanLike:
+    """Return the named human-like setting with ``NAME=VALUE`` knobs changed (ValueError)."""
+    known = {f.name for f in fields(HumanLike)}
+    changes = {}
+    for knob in knobs:
+        name, _, value = knob.partition('=')
+        if name not in known or not value:
+            raise ValueError(f'--knob {knob!r}: expected NAME=VALUE with NAME one of '
+                             f'{", ".join(sorted(known))}')
+        try:
+            changes[name] = float(value)
+        except ValueError:
+            raise ValueError(f'--knob {knob!r}: {value!r} is not a number') from None
+    return replace(HUMAN_LIKE_SETTING, **changes)  # HumanLike checks the ranges
 
 
 @dataclass
@@ -118,6 +140,9 @@ class LaunchOptions:
     press_times: bool = False
     """With ``human_like``: each late verdict carries the moment it was given
     (``feedback_pressed``), credited from then (``PRESS_TIMES_CREDIT``)."""
+    knobs: List[str] = field(default_factory=list)
+    """With ``human_like``: ``NAME=VALUE`` changes of the named setting's knobs (``HumanLike``:
+    for example ``feedback_probability=1``, a person who judges every move)."""
     resume: Optional[str] = None
     """A run folder whose nodes were killed: continue it with its own options."""
     domain: Optional[int] = None
@@ -236,6 +261,12 @@ def argument_parser() -> argparse.ArgumentParser:
                              'gave it (topic feedback_pressed), and the tamer credits it from '
                              'then (effect anchor, window 0.2-1.6 s), still not told the step '
                              'it judges')
+    parser.add_argument('--knob', dest='knobs', action='append', default=[],
+                        metavar='NAME=VALUE',
+                        help='with --human-like: change one knob of its setting (repeatable; '
+                             f'{", ".join(f.name for f in fields(HumanLike))}), for example '
+                             'feedback_probability=1: a person who judges every move, late and '
+                             'sometimes wrong; the credit window follows feedback_delay_max')
     parser.add_argument('--domain', type=domain_id, default=None, metavar='ID',
                         help='ROS_DOMAIN_ID of the graph, to join it from another shell (default: '
                              'ROS_DOMAIN_ID if set, else a free domain reserved for the run)')
@@ -370,13 +401,14 @@ def launcher_overrides(options: LaunchOptions, seed: int, run_dir: Path,
     if options.trainer == 'teacher' and not options.thesis_learner:
         overrides['tamer_node']['greedy_margin'] = TEACHING_GREEDY_MARGIN
     if options.human_like:
-        overrides['feedback_node'].update(vars(HUMAN_LIKE_SETTING))
+        setting = human_like_setting(options.knobs)
+        overrides['feedback_node'].update(vars(setting))
         overrides['tamer_node']['credit'] = 'window'  # late and plain: the window attributes it
         overrides['tamer_node']['window_min_s'], overrides['tamer_node']['window_max_s'] = (
-            human_like_window_s(1.0 / task.realtime_hz))
+            human_like_window_s(1.0 / task.realtime_hz, setting.feedback_delay_max))
         if options.press_times:
             overrides['feedback_node']['press_times'] = True
-            overrides['tamer_node'].update(PRESS_TIMES_CREDIT)
+            overrides['tamer_node'].update(press_times_credit(setting.feedback_delay_max))
     if not options.synthetic:
         overrides['feedback_node']['synthetic'] = False
         overrides['tamer_node']['credit'] = 'window'  # a person's feedback comes late
@@ -451,6 +483,9 @@ def build_plan(options: LaunchOptions, bin_dir: Path, cwd: Path,
     if options.trainer == 'thesis' and options.task != DEFAULT_TASK:
         raise ValueError(f"--trainer thesis measures Room 1's critical positions; task "
                          f'{options.task} is taught by the teacher (--trainer teacher)')
+    if options.knobs and not options.human_like:
+        raise ValueError('--knob changes the human-like setting: add --human-like')
+    human_like_setting(options.knobs)  # a bad knob is refused before anything starts
     if options.press_times and not options.human_like:
         raise ValueError('--press-times is how the human-like teacher gives its late verdicts: '
                          'add --human-like')
