@@ -184,6 +184,15 @@ def paced(metrics: dict, steps: int) -> dict:
             'paced_ms_per_step': float(metrics.get('act/paced_ms', 0)) / max(steps, 1)}
 
 
+def _lever(item: str) -> tuple:
+    """Return (name, value) of a ``--tamer NAME=VALUE``: the value as JSON if it reads so."""
+    name, _, text = item.partition('=')
+    try:
+        return name, json.loads(text)
+    except ValueError:
+        return name, text
+
+
 def _fmt(value, digits=1) -> str:
     return '-' if value is None else f'{value:.{digits}f}'
 
@@ -361,8 +370,7 @@ def main() -> int:
                         help='a tamer_node parameter for both runs (repeatable; a lever to '
                              'measure, as learner_nice=0)')
     args = parser.parse_args()
-    tamer = {key: json.loads(value) if value[:1] in '-0123456789tf[{"' else value
-             for key, value in (item.split('=', 1) for item in args.tamer)}
+    tamer = dict(_lever(item) for item in args.tamer)
     with tempfile.TemporaryDirectory(prefix='bench_graph_') as tmp:
         workdir = Path(tmp)
         if args.foxglove:

@@ -155,10 +155,6 @@ class ActingPath:
         self.config = config
         self.memory = memory
         """Verdicts on exact states, blended into H before choosing (None: H alone)."""
-        self.revisits = (Revisits(config.revisit_penalty, config.revisit_steps,
-                                  load_task(config.task).num_actions)
-                         if config.revisit_penalty > 0.0 else None)
-        """Actions taken lately in each exact state, counted against them (None: off)."""
         self.actor = actor
         self.slot = slot
         self.history = history
@@ -170,6 +166,9 @@ class ActingPath:
         task = load_task(config.task)
         self._frame_shape = task.frame_shape
         self._num_actions = task.num_actions
+        self.revisits = (Revisits(config.revisit_penalty, config.revisit_steps, task.num_actions)
+                         if config.revisit_penalty > 0.0 else None)
+        """Actions taken lately in each exact state, counted against them (None: off)."""
         # input_image 'saliency': observations waiting for their saliency image (stamp ->
         # monotonic arrival time); answered on the observation after saliency_timeout_s.
         self._awaiting: 'collections.OrderedDict[int, float]' = (
