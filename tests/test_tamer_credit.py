@@ -13,7 +13,7 @@ from tamer_node.config import TamerConfig
 from tamer_node.credit import effect_credit, NS_PER_S, spans_from_stamps, window_credit
 from tamer_node.history import holds, StepHistory
 from tamer_node.learner import excluded_mse, Learner, mixture_mse
-from tamer_node.memory import VerdictMemory
+from tamer_node.memory import state_key, VerdictMemory
 from tamer_node.model import Encoder, FEATURE_SIZE, HModel, joystick_parts, PartsHead
 from tamer_node.pairing import by_prediction, to_decisions
 from tamer_node.posterior import feedback_likelihood, posterior_weights
@@ -409,11 +409,12 @@ def test_the_memory_blends_remembered_verdicts_into_h_as_pseudo_counts():
     memory = VerdictMemory(1.0, 6, capacity=2)
     here, there = torch.zeros(FEATURE_SIZE), torch.ones(FEATURE_SIZE)
     memory.add([sample(2, -1.0, 1.0, 1, state=here), sample(4, 1.0, 0.5, 2, state=here)])
-    blended = memory.blend(here.clone(), torch.zeros(6))
+    blended = memory.blend(state_key(here.clone()), torch.zeros(6))
     assert blended[2] == pytest.approx(-0.5)  # one verdict of -1 against H = 0: half way
     assert blended[4] == pytest.approx(0.5 / 1.5)  # half a verdict (a window's share)
     assert blended[[0, 1, 3, 5]].tolist() == [0.0] * 4  # untried: H alone
-    assert torch.equal(memory.blend(there, torch.zeros(6)), torch.zeros(6))  # another state
+    elsewhere = memory.blend(state_key(there), torch.zeros(6))
+    assert torch.equal(elsewhere, torch.zeros(6))  # another state
     memory.add([sample(0, 1.0, 1.0, 3, state=there), sample(0, 1.0, 1.0, 4, state=2 * there)])
     assert len(memory) == 2 and memory.lookup(here) is None  # the oldest state forgotten
 
@@ -445,17 +446,17 @@ def test_an_action_judged_bad_in_this_very_state_is_not_taken_again(tmp_path):
 def test_revisits_count_each_action_per_state_over_the_last_steps_only():
     revisits = Revisits(penalty=0.5, steps=3, num_actions=4)
     here, there = torch.zeros(8), torch.ones(8)
-    key, penalty = revisits.penalties(here)
-    assert penalty.tolist() == [0.0] * 4
+    key = state_key(here)
+    assert revisits.penalties(key).tolist() == [0.0] * 4
     revisits.took(key, 2)
     revisits.took(key, 2)
-    other, _ = revisits.penalties(there)
+    other = state_key(there)
     revisits.took(other, 1)
-    assert revisits.penalties(here)[1].tolist() == [0.0, 0.0, 1.0, 0.0]
-    assert revisits.penalties(there)[1].tolist() == [0.0, 0.5, 0.0, 0.0]
+    assert revisits.penalties(key).tolist() == [0.0, 0.0, 1.0, 0.0]
+    assert revisits.penalties(other).tolist() == [0.0, 0.5, 0.0, 0.0]
     revisits.took(other, 1)  # the window holds 3: the first visit here is forgotten
-    assert revisits.penalties(here)[1].tolist() == [0.0, 0.0, 0.5, 0.0]
-    assert revisits.penalties(there)[1].tolist() == [0.0, 1.0, 0.0, 0.0]
+    assert revisits.penalties(key).tolist() == [0.0, 0.0, 0.5, 0.0]
+    assert revisits.penalties(other).tolist() == [0.0, 1.0, 0.0, 0.0]
 
 
 def act_on_one_frame_again_and_again(tmp_path: Path, times: int, **changes) -> list:

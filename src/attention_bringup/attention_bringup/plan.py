@@ -485,7 +485,6 @@ def build_plan(options: LaunchOptions, bin_dir: Path, cwd: Path,
                          f'{options.task} is taught by the teacher (--trainer teacher)')
     if options.knobs and not options.human_like:
         raise ValueError('--knob changes the human-like setting: add --human-like')
-    human_like_setting(options.knobs)  # a bad knob is refused before anything starts
     if options.press_times and not options.human_like:
         raise ValueError('--press-times is how the human-like teacher gives its late verdicts: '
                          'add --human-like')

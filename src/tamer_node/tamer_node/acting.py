@@ -22,7 +22,7 @@ from attention_tasks.task import load_task
 import numpy as np
 from tamer_node.config import TamerConfig, WAITS_FOR_SALIENCY
 from tamer_node.history import holds, StepHistory
-from tamer_node.memory import VerdictMemory
+from tamer_node.memory import state_key, VerdictMemory
 from tamer_node.model import HModel, preprocess, to_input
 from tamer_node.pairing import both_item
 from tamer_node.persistence import (
@@ -358,14 +358,16 @@ class ActingPath:
         else:
             state = record.image(kind) if image is None else image
             values = self.actor.predict(state)
+        hashed = self.memory is not None or self.revisits is not None
+        key = state_key(state) if hashed else None  # one digest for the memory and the revisits
         if self.memory is not None:  # the verdicts on this very state (memory.py)
-            values = self.memory.blend(state, values)
+            values = self.memory.blend(key, values)
         if held is not None and clearly_better(values, held, self.config.decision_switch_margin):
             self.counters['act/switched'] += 1
             held = None  # what H learned overrides the rest of the decision
-        key, penalty = (None, None) if self.revisits is None else self.revisits.penalties(state)
+        penalty = None if self.revisits is None else self.revisits.penalties(key)
         action = held if held is not None else self._decide(values, penalty)
-        if key is not None:
+        if penalty is not None:
             if float(penalty.sum()) > 0.0:  # back in a state acted in lately
                 self.counters['act/revisits'] += 1
             self.revisits.took(key, action)

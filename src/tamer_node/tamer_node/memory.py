@@ -60,9 +60,8 @@ class VerdictMemory:
             while len(self._states) > self.capacity:
                 self._states.popitem(last=False)
 
-    def blend(self, state: torch.Tensor, values: torch.Tensor) -> torch.Tensor:
-        """Return H(s, .) blended with the verdicts remembered for this exact ``state``."""
-        key = state_key(state)
+    def blend(self, key: bytes, values: torch.Tensor) -> torch.Tensor:
+        """Return H(s, .) blended with the verdicts remembered for the state of ``key``."""
         with self._lock:
             sums = self._states.get(key)
             if sums is None:

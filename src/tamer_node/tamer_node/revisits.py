@@ -14,7 +14,6 @@ in a state it just left takes another action, and a loop opens. States that neve
 import collections
 from typing import Deque, Tuple
 
-from tamer_node.memory import state_key
 import torch
 
 
@@ -27,12 +26,11 @@ class Revisits:
         self._recent: Deque[Tuple[bytes, int]] = collections.deque(maxlen=int(steps))
         self._counts: 'collections.Counter[Tuple[bytes, int]]' = collections.Counter()
 
-    def penalties(self, state: torch.Tensor) -> Tuple[bytes, torch.Tensor]:
-        """Return the state's key and the (actions,) amounts to lower its H by."""
-        key = state_key(state)
+    def penalties(self, key: bytes) -> torch.Tensor:
+        """Return the (actions,) amounts to lower H by in the state of ``key`` (``state_key``)."""
         taken = torch.tensor([self._counts.get((key, action), 0)
                               for action in range(self.num_actions)], dtype=torch.float32)
-        return key, self.penalty * taken
+        return self.penalty * taken
 
     def took(self, key: bytes, action: int) -> None:
         """Count ``action`` taken in the state of ``key``; forget the oldest beyond the window."""
