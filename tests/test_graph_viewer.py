@@ -168,7 +168,7 @@ def test_a_split_of_three_becomes_two_nested_splits_with_its_proportions():
 WATCHED = ('/observation', '/metrics', '/plot/metrics', '/plot/env_status')
 
 
-async def _watch(url: str, frames_for_s: float) -> FoxgloveClient:
+async def _watch(url: str, frames_for_s: float, run_dir: Path) -> FoxgloveClient:
     """Connect as soon as the bridge serves, subscribe, and read while the graph steps."""
     deadline = time.monotonic() + 90.0
     while True:
@@ -184,6 +184,8 @@ async def _watch(url: str, frames_for_s: float) -> FoxgloveClient:
         assert client.protocol == SUBPROTOCOL
         assert await client.wait_for_channels(WATCHED, 30.0), sorted(client.channels)
         client.listening = listening_sockets()
+        client.niceness = _niceness(json.loads((run_dir / 'pids.json').read_text())[
+            'graph_viewer'])
         await client.subscribe(WATCHED)
         while not client.of('/observation') and time.monotonic() < deadline:
             await client.read_for(0.5)  # the graph's start-up
@@ -194,6 +196,15 @@ async def _watch(url: str, frames_for_s: float) -> FoxgloveClient:
     finally:
         await client.__aexit__(None, None, None)
     return client
+
+
+def _niceness(pid: int) -> dict:
+    """Return each thread's niceness (tid -> nice) of process ``pid``."""
+    niceness = {}
+    for task in Path(f'/proc/{pid}/task').iterdir():
+        fields = (task / 'stat').read_text().rsplit(')', 1)[1].split()
+        niceness[int(task.name)] = int(fields[16])  # field 19 of stat: nice
+    return niceness
 
 
 def _flat(record: dict, prefix: str = '') -> dict:
@@ -225,7 +236,7 @@ def watched_session(tmp_path_factory):
          '--foxglove', '--foxglove-port', str(port)],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
-        client = asyncio.run(_watch(f'ws://127.0.0.1:{port}', 8.0))
+        client = asyncio.run(_watch(f'ws://127.0.0.1:{port}', 8.0, run_dir))
         out, err = launcher.communicate(timeout=180)
     finally:
         if launcher.poll() is None:
@@ -255,6 +266,9 @@ def test_foxglove_gets_the_frames_at_the_envs_rate(watched_session):
     assert (image.width, image.height, image.encoding) == (160, 210, 'rgb8')
     assert client.channels['/observation']['schemaName'] == 'sensor_msgs/msg/Image'
     assert client.channels['/observation']['encoding'] == 'cdr'
+    # Every thread of the bridge (DDS's, the server's) yields the cores to the graph.
+    assert client.niceness and min(client.niceness.values()) >= ViewerConfig.nice, (
+        client.niceness)
     # Served on loopback only.
     ours = [address for address, listen_port in client.listening if listen_port == port]
     assert ours and all(loopback_address(address) for address in ours), ours

@@ -3,6 +3,7 @@
 import json
 import math
 import signal
+import time
 
 from attention_common import qos, topics
 from attention_common.executors import EXECUTOR_ENV, EXECUTORS
@@ -347,7 +348,8 @@ def test_it_says_what_it_made_of_each_step_and_each_feedback(
     """action_values: H of every action and the action taken; feedback_credit: the steps."""
     node = start_node('tamer_node', {'run_dir': str(tmp_path / 'run'), 'credit': 'window',
                                      'window_min_s': 0.2, 'window_max_s': 1.6,
-                                     'decision_period_s': 0.2})
+                                     'decision_period_s': 0.2,
+                                     'values_rate_hz': 0.0})  # every step, however fast
     graph = Graph(probe)
     seen = probe.subscribe(DiagnosticArray, topics.ACTION_VALUES, qos.ACTION_VALUES)
     credited = probe.subscribe(DiagnosticArray, topics.FEEDBACK_CREDIT, qos.HUMAN)
@@ -370,4 +372,25 @@ def test_it_says_what_it_made_of_each_step_and_each_feedback(
     assert sum(credit.values()) == pytest.approx(1.0, abs=1e-3)
     assert set(credit) <= set(stamps[::3])  # decisions of 3: the steps that chose
     assert min(credit) >= stamps[-1] - 2 * 1_000_000_000 and len(credit) >= 5
+    assert node.stop(signal.SIGINT) == 0
+
+
+@pytest.mark.topics
+def test_h_goes_out_at_most_at_its_rate_when_the_steps_come_faster(
+        probe, start_node, tmp_path, frames):
+    """values_rate_hz thins a lockstep run's action_values where they are made; newest last."""
+    node = start_node('tamer_node', {'run_dir': str(tmp_path / 'run'), 'values_rate_hz': 5.0})
+    graph = Graph(probe)
+    seen = probe.subscribe(DiagnosticArray, topics.ACTION_VALUES, qos.ACTION_VALUES)
+    graph.wait_connected(node)
+    started = time.monotonic()
+    stamps = [(i + 1) * STEP_NS for i in range(60)]
+    for i, stamp in enumerate(stamps):
+        graph.step(frames[i % len(frames)], stamp)
+    elapsed = time.monotonic() - started
+    assert seen.wait_for(lambda msgs: len(msgs) >= 1, 10.0)
+    time.sleep(0.5)  # any straggler in DDS
+    sent = [stamp_to_ns(m.header.stamp) for m in seen.snapshot()]
+    assert 1 <= len(sent) <= 5 + 5.0 * elapsed + 1, (len(sent), elapsed)  # burst, then rate
+    assert len(sent) < len(stamps) and set(sent) <= set(stamps) and sent == sorted(sent)
     assert node.stop(signal.SIGINT) == 0

@@ -18,7 +18,10 @@ Benchmark: the whole graph (four processes over DDS) against the same loop in on
 ``--foxglove N``: instead, the cost of watching in Foxglove: the graph alone against the graph with
 ``--foxglove`` and one client of the Foxglove protocol subscribed to every channel (the worst
 case: images, raw topics and plots), alternating, N pairs of ``--graph-steps`` (target: at most
-5 % slower).
+5 % slower). ``--foxglove-interleaved SECONDS``: one long run with the bridge, a client
+watching for SECONDS and gone for SECONDS, in turns; each watched phase's steps/s (from
+metrics.csv) against the phases alone on either side of it, which leaves out the drift between
+runs that makes pairs of runs too noisy to tell 5 % (``--viewer nice=0``: a lever).
 
 The graph's nodes use the executor ``ATTENTION_EXECUTOR`` names (``events`` unless set; see
 ``attention_common/executors.py``). Prints a markdown table (targets: graph >= 0.7 x
@@ -278,6 +281,118 @@ class Watcher(threading.Thread):
         return []
 
 
+class Toggler(Watcher):
+    """A client that watches for ``period_s``, leaves for ``period_s``, and so on: the phases."""
+
+    def __init__(self, port: int, channels: str, period_s: float):
+        super().__init__(port, channels, legacy=False)
+        self.period_s = period_s
+        self.phases = []
+        """(wall time from, to, watched): when the client was subscribed, and when not."""
+
+    async def _watch(self) -> None:
+        sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+        from foxglove_client import FoxgloveClient, SDK_SUBPROTOCOL, SUBPROTOCOL
+        left = time.time()
+        while not self.stop.is_set():
+            try:
+                async with FoxgloveClient(self.url, (SDK_SUBPROTOCOL, SUBPROTOCOL)) as client:
+                    await client.read_for(1.0)  # the advertisements
+                    await client.subscribe(self._chosen(client.channels))
+                    joined = time.time()
+                    self.phases.append((left, joined, False))
+                    while time.time() - joined < self.period_s and not self.stop.is_set():
+                        await client.read_for(0.5)
+                        self.received += len(client.received)
+                        client.received.clear()
+                left = time.time()
+                self.phases.append((joined, left, True))
+                await asyncio.sleep(self.period_s)
+            except (OSError, asyncio.TimeoutError):  # not serving yet
+                await asyncio.sleep(0.2)
+
+
+def phase_rates(timeline, phases, settle_s: float) -> list:
+    """
+    Return (watched, steps/s) of each phase the graph stepped through from end to end.
+
+    ``timeline``: (wall time, steps acted) rows, as metrics.csv has them (one a second);
+    ``phases``: (from, to, watched); the first ``settle_s`` of a phase is left out (the bridge
+    takes or drops its readers within a poll, DDS matches them within a moment).
+    """
+    def steps_at(when):
+        for (t0, n0), (t1, n1) in zip(timeline, timeline[1:]):
+            if t0 <= when <= t1:
+                return n0 + (n1 - n0) * (when - t0) / (t1 - t0) if t1 > t0 else n0
+        return None
+
+    rates = []
+    for start, end, watched in phases:
+        start += settle_s
+        if end - start < 1.0:
+            continue
+        first, last = steps_at(start), steps_at(end)
+        if first is None or last is None or not last > first:
+            continue  # before the graph stepped or after it stopped
+        rates.append((watched, (last - first) / (end - start)))
+    return rates
+
+
+def paired_slowdowns(rates) -> list:
+    """
+    Return each watched phase's slowdown (%) against the mean of the phases alone beside it.
+
+    Neighbours on both sides cancel a drift that is linear over the three phases.
+    """
+    slowdowns = []
+    for index, (watched, rate) in enumerate(rates):
+        if not watched:
+            continue
+        beside = [r for w, r in rates[max(index - 1, 0):index + 2:2] if not w]
+        if beside:
+            slowdowns.append(100.0 * (1.0 - rate / statistics.mean(beside)))
+    return slowdowns
+
+
+def foxglove_interleaved(steps: int, period_s: float, workdir: Path, pace_updates: float,
+                         channels: str, viewer: dict) -> int:
+    """One graph run with the bridge; a client watches and leaves in turns; print the cost."""
+    port = _free_port()
+    toggler = Toggler(port, channels, period_s)
+    toggler.start()
+    run = graph_run(steps, workdir, pace_updates, 'interleaved',
+                    ('--foxglove', '--foxglove-port', str(port)),
+                    viewer=''.join(f'    {key}: {json.dumps(value)}\n'
+                                   for key, value in viewer.items()))
+    toggler.stop.set()
+    toggler.join(10.0)
+    import csv
+    with (workdir / 'interleaved' / 'metrics.csv').open() as handle:
+        timeline = [(float(row['wall_time']), float(row['act/count']))
+                    for row in csv.DictReader(handle) if row.get('act/count')]
+    rates = phase_rates(timeline, toggler.phases, settle_s=2.0)
+    alone = [rate for watched, rate in rates if not watched]
+    watched = [rate for watched, rate in rates if watched]
+    slowdowns = paired_slowdowns(rates)
+    slowdown = mean_ci(slowdowns)
+    print(f'one lockstep run of {run["steps"]} steps ({run["steps_per_s"]:.1f} steps/s), a '
+          f'client on the {channels} channels for {period_s:g} s, then none for {period_s:g} s, '
+          f'in turns ({toggler.received} messages to it); the first 2 s of a phase left out; '
+          f'graph_viewer {viewer or "defaults"}\n')
+    print('| phases | n | steps/s (mean) |\n|---|---|---|')
+    print(f'| alone | {len(alone)} | {statistics.mean(alone):.1f} |')
+    print(f'| watched | {len(watched)} | {statistics.mean(watched):.1f} |')
+    print(f'\nslowdown of each watched phase (%): {", ".join(f"{v:.1f}" for v in slowdowns)}')
+    if slowdown.high is not None:
+        shown = ('met' if slowdown.high <= 100 * FOXGLOVE_COST_TARGET else
+                 'missed' if slowdown.low > 100 * FOXGLOVE_COST_TARGET else 'neither shown')
+        print(f'\n| slowdown of a watched phase against the phases alone beside it, mean [95 % '
+              f'CI] | {slowdown.mean:.1f} % [{slowdown.low:.1f}, {slowdown.high:.1f}] over '
+              f'{slowdown.n} (sd {slowdown.sd:.1f}): target <= '
+              f'{100 * FOXGLOVE_COST_TARGET:g} % {shown} |')
+    return 0
+
+
 def _free_port() -> int:
     with socket.socket() as probe:
         probe.bind(('127.0.0.1', 0))
@@ -355,6 +470,10 @@ def main() -> int:
     parser.add_argument('--foxglove', type=int, default=0, metavar='PAIRS',
                         help='measure the cost of watching in Foxglove instead: PAIRS runs '
                              'alone and watched, alternating')
+    parser.add_argument('--foxglove-interleaved', type=float, default=0.0, metavar='SECONDS',
+                        help='measure the cost of watching within one run instead: a client '
+                             'watches for SECONDS and leaves for SECONDS, in turns, and each '
+                             'watched phase is compared with the phases alone beside it')
     parser.add_argument('--foxglove-channels', choices=('all', 'layout', 'none'), default='layout',
                         help='with --foxglove, what the client subscribes to (default: the '
                              "shipped layout's channels, as Foxglove with it open does)")
@@ -366,6 +485,9 @@ def main() -> int:
                              'itself (clients of foxglove.sdk.v1 only)')
     parser.add_argument('--foxglove-image-rate', type=float, default=0.0, metavar='HZ',
                         help="graph_viewer's max_image_rate_hz (default: the node's)")
+    parser.add_argument('--viewer', action='append', default=[], metavar='NAME=VALUE',
+                        help='a graph_viewer parameter for --foxglove-interleaved (repeatable; '
+                             'a lever to measure, as nice=0)')
     parser.add_argument('--tamer', action='append', default=[], metavar='NAME=VALUE',
                         help='a tamer_node parameter for both runs (repeatable; a lever to '
                              'measure, as learner_nice=0)')
@@ -373,6 +495,11 @@ def main() -> int:
     tamer = dict(_lever(item) for item in args.tamer)
     with tempfile.TemporaryDirectory(prefix='bench_graph_') as tmp:
         workdir = Path(tmp)
+        if args.foxglove_interleaved:
+            print(f'Machine: {machine()}; executor {executor_name()}')
+            return foxglove_interleaved(args.graph_steps, args.foxglove_interleaved, workdir,
+                                        args.pace_updates, args.foxglove_channels,
+                                        dict(_lever(item) for item in args.viewer))
         if args.foxglove:
             print(f'Machine: {machine()}; executor {executor_name()}')
             return foxglove_cost(args.foxglove, args.graph_steps, workdir, args.pace_updates,

@@ -35,6 +35,10 @@ class ViewerConfig:
     """Also serve clients that offer only the protocol's first name, foxglove.websocket.v1
     (Lichtblick before 1.22): foxglove-sdk names it foxglove.sdk.v1 only, so a small relay in
     front renames the one header (subprotocol.py). false: the SDK serves the port itself."""
+    nice: int = 10
+    """Niceness added to every thread of the viewer (0-19): on busy cores the graph's own
+    processes get the CPU first and the viewer what they leave (0: equal). The frames it sends
+    come late under load; feedback and words are still taken whole, in order."""
     message_backlog: int = 256
     """Messages buffered per client; a slow client loses the oldest, never the graph's time."""
 
@@ -45,6 +49,8 @@ class ViewerConfig:
         for name in ('max_image_rate_hz', 'max_step_rate_hz'):
             if not getattr(self, name) >= 0:
                 raise ValueError(f'{name} must be >= 0, got {getattr(self, name)}')
+        if not 0 <= self.nice <= 19:
+            raise ValueError(f'nice must be within 0..19, got {self.nice}')
         if not self.poll_hz > 0:
             raise ValueError(f'poll_hz must be > 0, got {self.poll_hz}')
         if self.message_backlog < 1:

@@ -12,7 +12,9 @@ its speed, even with nobody watching). So a topic is subscribed only while a cli
 (its raw or its plot channel), on a node of its own that no executor spins, and a timer takes
 what came (``poll_hz``): per-step topics and images through a depth-1 reader, at most
 ``max_step_rate_hz`` / ``max_image_rate_hz`` (the newest), so DDS drops the rest and Python
-never sees them; a person's words, receipts, credit and metrics whole, in order.
+never sees them; a person's words, receipts, credit and metrics whole, in order. Every thread
+of it runs ``nice`` lower than the graph's (``attention_common.priority``): on busy cores the
+graph steps first and the viewer takes what is left.
 """
 
 import threading
@@ -22,6 +24,7 @@ from urllib.parse import quote
 
 from attention_common.node_main import Closing, run_node, StartupError
 from attention_common.parameters import declare_dataclass
+from attention_common.priority import lower_process_priority
 from attention_common.stamps import stamp_to_ns
 from attention_tasks.montezuma.critical_positions import DEFAULT_RADIUS
 from attention_tasks.task import load_task, UnknownTask
@@ -123,6 +126,8 @@ class GraphViewerNode(Closing, Node):
             raise StartupError(f'graph_viewer: cannot serve on {self.config.host}:'
                                f'{self.config.port} ({error})') from None
         self.url = f'ws://{self.config.host}:{port}'
+        for failed in lower_process_priority(self.config.nice):  # the server's threads too
+            self.get_logger().warn(f'priority left as it is: {failed}')
         self.get_logger().info(
             f'Foxglove bridge at {self.url} ({len(self.forwards)} topics; in Foxglove: Open '
             f'connection, Foxglove WebSocket, this URL; or https://app.foxglove.dev/?ds='

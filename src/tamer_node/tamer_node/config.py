@@ -115,6 +115,10 @@ class TamerConfig:
     after the first update, then 1, 2, 4, ... s apart up to this (0 = only at exit)."""
     metrics_period_s: float = 1.0
     """Wall seconds between metrics messages (and rows of metrics.csv)."""
+    values_rate_hz: float = 30.0
+    """Most action_values messages a wall second, with bursts of a few (a viewer shows no more:
+    real time's 15 steps a second pass whole, a lockstep run's 150-200 are thinned at the source
+    so watching costs the acting path less; 0 = every step)."""
     fine_tune_encoder: bool = False
     """Train the pretrained encoder too (Deep TAMER keeps it frozen)."""
     input_image: str = 'observation'
@@ -245,6 +249,7 @@ class TamerConfig:
             'max_stamp_jump_s': self.max_stamp_jump_s > 0.0,
             'checkpoint_period_s': self.checkpoint_period_s >= 0.0,
             'metrics_period_s': self.metrics_period_s > 0.0,
+            'values_rate_hz': self.values_rate_hz >= 0.0,
             'text_size': self.text_size >= 1,
             'head_hidden': self.head_hidden >= 1,
             'greedy_margin': 0.0 <= self.greedy_margin <= 2.0,

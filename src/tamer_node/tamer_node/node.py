@@ -6,8 +6,9 @@ Subscribes ``observation``, ``saliency``, ``feedback``, ``feedback_stamped``,
 ``action_taken`` (the action executed on a step when it was not the agent's: attention_replay);
 publishes ``action`` (sensor_msgs/Joy with the answered image's header), ``metrics``,
 ``feedback_logged``: one receipt per feedback or utterance line written to the log,
-``action_values`` (while anyone listens: H of every action on each step acted on, and the action
-taken) and ``feedback_credit`` (the steps each feedback learned from was credited to).
+``action_values`` (while anyone listens, at most ``values_rate_hz`` a second: H of every action
+on each step acted on, and the action taken) and ``feedback_credit`` (the steps each feedback
+learned from was credited to).
 Every TamerConfig field is a parameter of the same name; ``alpha`` may be changed at run time.
 
 Executor: one thread (``attention_common.executors``: the EventsExecutor) on purpose. Every
@@ -19,6 +20,7 @@ second here on 2 shared cores, for nothing a callback would gain from running in
 
 import dataclasses
 import math
+import time
 
 from attention_common import qos, topics
 from attention_common.executors import with_message_info
@@ -26,6 +28,7 @@ from attention_common.image_codec import image_to_numpy, ImageFormatError
 from attention_common.joy_actions import action_to_joy, joy_to_action, JoyActionError
 from attention_common.node_main import Closing, run_node, StartupError
 from attention_common.parameters import declare_parameters
+from attention_common.rate import TokenBucket
 from attention_common.recorder_gate import RecorderGate
 from attention_common.stamps import ns_to_stamp, stamp_to_ns
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
@@ -70,6 +73,8 @@ class TamerNode(Closing, Node):
         self.agent.on_logged = self._publish_receipt
         self.values_pub = self.create_publisher(DiagnosticArray, topics.ACTION_VALUES,
                                                 qos.ACTION_VALUES)
+        self._values_budget = (TokenBucket(self.config.values_rate_hz)
+                               if self.config.values_rate_hz > 0 else None)
         self.credit_pub = self.create_publisher(DiagnosticArray, topics.FEEDBACK_CREDIT,
                                                 qos.HUMAN)
         self.agent.worker.on_credit = self._publish_credit
@@ -234,7 +239,9 @@ class TamerNode(Closing, Node):
             acted.clear()  # a lockstep run without a viewer pays nothing for it
             return
         while acted:
-            self._publish_step_values(*acted.popleft())
+            entry = acted.popleft()
+            if self._values_budget is None or self._values_budget.allow(time.monotonic()):
+                self._publish_step_values(*entry)
 
     def _publish_step_values(self, stamp: int, action: int, values) -> None:
         names = self.agent.task.action_names
