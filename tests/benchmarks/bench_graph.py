@@ -30,6 +30,7 @@ in-process; observation-to-action p50 < 2 ms, p99 < 5 ms).
 
 import argparse
 import asyncio
+import csv
 import json
 import os
 from pathlib import Path
@@ -366,7 +367,6 @@ def foxglove_interleaved(steps: int, period_s: float, workdir: Path, pace_update
                                    for key, value in viewer.items()))
     toggler.stop.set()
     toggler.join(10.0)
-    import csv
     with (workdir / 'interleaved' / 'metrics.csv').open() as handle:
         timeline = [(float(row['wall_time']), float(row['act/count']))
                     for row in csv.DictReader(handle) if row.get('act/count')]

@@ -16,7 +16,7 @@ The settings are the words study's (8 x 8, four objects, 50 steps an episode, 1.
 step); the last ``--heldout`` steps are on held-out rooms with held-out target pairs.
 
 Run: ``.venv/bin/python tests/benchmarks/teach_fetch_inprocess.py --seeds 900 901 --steps 10000
-[--mode mask|language|off] [--explore 0.1] [--human-like] [--stamped-late]
+[--mode mask|language|off] [--explore 0.1] [--human-like [--press-times]] [--stamped-late]
 [--set NAME=VALUE ...]
 [--out results.json]``.
 """
@@ -33,8 +33,9 @@ from teach_inprocess import give, parse_value
 
 
 def run_trial(seed: int, steps: int, heldout: int, mode: str, explore: float, human_like: bool,
-              overrides: dict, workdir: Path, stamped_late: bool = False) -> dict:
-    from attention_bringup.plan import human_like_window_s
+              overrides: dict, workdir: Path, stamped_late: bool = False,
+              press_times: bool = False) -> dict:
+    from attention_bringup.plan import human_like_window_s, PRESS_TIMES_CREDIT
     from attention_tasks.fetch.env import FetchEnv, FetchEnvConfig
     from attention_tasks.gridworld import STEP_S
     from feedback_node.human_like import HUMAN_LIKE_SETTING
@@ -57,6 +58,8 @@ def run_trial(seed: int, steps: int, heldout: int, mode: str, explore: float, hu
               'input_image': 'observation' if mode == 'off' else 'both', 'explore': explore}
     if plain:  # as attention_train --human-like sets it
         config['window_min_s'], config['window_max_s'] = human_like_window_s(STEP_S)
+    if plain and press_times:  # as attention_train --human-like --press-times sets it
+        config.update(PRESS_TIMES_CREDIT)
     config.update(overrides)
     run_dir = workdir / f'seed{seed}'
     agent = TamerAgent(TamerConfig(run_dir=str(run_dir), **config), run_dir)
@@ -88,7 +91,7 @@ def run_trial(seed: int, steps: int, heldout: int, mode: str, explore: float, hu
     begun = 0
     for k in range(steps):
         action = act(step)
-        give(agent, due, plain)  # released as this step showed, heard after it (the graph's order)
+        give(agent, due, plain, press_times)  # heard after the step they were released on
         step = env.step(action)
         due = see(step)
         if step.done:
@@ -124,6 +127,9 @@ def main(argv=None) -> int:
     parser.add_argument('--stamped-late', action='store_true',
                         help="the human-like teacher's verdicts, but each stamped with the step "
                              'it judges (attribution exact; as sparse, late and wrong)')
+    parser.add_argument('--press-times', action='store_true',
+                        help="with --human-like: each late verdict carries the moment it was "
+                             "given (source pressed), as the console's key presses do")
     parser.add_argument('--set', action='append', default=[], metavar='NAME=VALUE',
                         help='a TamerConfig field (repeatable)')
     parser.add_argument('--out', type=Path, default=None)
@@ -133,7 +139,8 @@ def main(argv=None) -> int:
     with tempfile.TemporaryDirectory() as workdir:
         for seed in args.seeds:
             result = run_trial(seed, args.steps, args.heldout, args.mode, args.explore,
-                               args.human_like, overrides, Path(workdir), args.stamped_late)
+                               args.human_like, overrides, Path(workdir), args.stamped_late,
+                               args.press_times)
             results.append(result)
             print(json.dumps(result), flush=True)
     held = sum(r['heldout_episodes'] for r in results)
@@ -144,7 +151,8 @@ def main(argv=None) -> int:
         args.out.write_text(json.dumps({'argv': sys.argv[1:], 'mode': args.mode,
                                         'explore': args.explore,
                                         'human_like': args.human_like,
-                                        'stamped_late': args.stamped_late, 'overrides': overrides,
+                                        'stamped_late': args.stamped_late,
+                                        'press_times': args.press_times, 'overrides': overrides,
                                         'results': results}, indent=1) + '\n')
     return 0
 

@@ -40,10 +40,17 @@ def parse_value(text: str):
     return {'true': True, 'false': False}.get(text, text)
 
 
-def give(agent, judgements, human_like: bool) -> None:
-    """Hand the teacher's judgements to the agent: stamped on time, or plain (late, human-like)."""
+def give(agent, judgements, human_like: bool, press_times: bool = False) -> None:
+    """
+    Hand the teacher's judgements to the agent: stamped on time, or plain (late, human-like).
+
+    ``press_times``: late ones carry the moment they were given (source 'pressed'), as the
+    console's key presses and ``attention_train --press-times`` do.
+    """
     for judgement in judgements:
-        if human_like:
+        if human_like and press_times:
+            agent.on_feedback(judgement.h, 'pressed', judgement.pressed_ns)
+        elif human_like:
             agent.on_feedback(judgement.h, 'plain')
         else:
             agent.on_feedback(judgement.h, 'stamped', judgement.stamp_ns)
