@@ -128,7 +128,7 @@ def main(argv=None) -> int:
                         help="the human-like teacher's verdicts, but each stamped with the step "
                              'it judges (attribution exact; as sparse, late and wrong)')
     parser.add_argument('--press-times', action='store_true',
-                        help="with --human-like: each late verdict carries the moment it was "
+                        help='with --human-like: each late verdict carries the moment it was '
                              "given (source pressed), as the console's key presses do")
     parser.add_argument('--set', action='append', default=[], metavar='NAME=VALUE',
                         help='a TamerConfig field (repeatable)')
