@@ -314,3 +314,38 @@ def test_a_bags_plots_are_what_foxglove_saw_live(watched_session, capsys):
             from_bag[json.dumps(record['stamp'])] = record
     live = [json.loads(m.payload) for m in client.of('/plot/metrics')]
     assert live and all(from_bag[json.dumps(record['stamp'])] == record for record in live)
+
+
+def _bench_graph():
+    sys.path.insert(0, str(Path(__file__).parent / 'benchmarks'))
+    import bench_graph
+    return bench_graph
+
+
+def test_each_phase_counts_the_steps_of_its_own_seconds_after_it_settled():
+    bench = _bench_graph()
+    timeline = [(t, 100.0 * t if t < 10 else 1000.0 + 80.0 * (t - 10)) for t in range(31)]
+    phases = [(-5.0, 0.0, False),  # before the graph stepped: left out
+              (0.0, 10.0, False), (10.0, 20.0, True), (20.0, 30.0, False),
+              (30.0, 40.0, True)]  # after it stopped: left out
+    rates = bench.phase_rates(timeline, phases, settle_s=2.0)
+    assert rates == [(False, pytest.approx(100.0)), (True, pytest.approx(80.0)),
+                     (False, pytest.approx(80.0))]
+
+
+def test_a_watched_phase_is_set_against_the_phases_alone_on_either_side():
+    bench = _bench_graph()
+    rates = [(False, 100.0), (True, 90.0), (False, 80.0), (True, 76.0), (False, 80.0)]
+    assert bench.paired_slowdowns(rates) == [pytest.approx(0.0), pytest.approx(5.0)]
+
+
+@pytest.mark.topics
+def test_the_interleaved_cost_benchmark_runs_and_prints_its_table(tmp_path):
+    """bench_graph.py --foxglove-interleaved end to end: the graph, the bridge, a client."""
+    result = subprocess.run(
+        [sys.executable, str(Path(__file__).parent / 'benchmarks' / 'bench_graph.py'),
+         '--foxglove-interleaved', '3', '--graph-steps', '1500'],
+        capture_output=True, text=True, timeout=300, cwd=tmp_path)
+    assert result.returncode == 0, result.stdout[-2000:] + result.stderr[-3000:]
+    assert '| alone |' in result.stdout and '| watched |' in result.stdout, result.stdout
+    assert ' messages to it' in result.stdout and ' (0 messages' not in result.stdout
