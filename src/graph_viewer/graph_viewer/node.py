@@ -94,6 +94,9 @@ class GraphViewerNode(Closing, Node):
         except (ValueError, UnknownTask) as error:
             raise StartupError(f'graph_viewer: {error}') from None
         self._milestone_of = lambda values: task.milestone_of(values, DEFAULT_RADIUS)
+        # DDS's threads now; the server's and the relay's, started below, inherit it.
+        for failed in lower_process_priority(self.config.nice):
+            self.get_logger().warn(f'priority left as it is: {failed}')
         self.errors = 0
         self.foxglove = foxglove.Context()
         self.watchers = Watchers()
@@ -126,8 +129,6 @@ class GraphViewerNode(Closing, Node):
             raise StartupError(f'graph_viewer: cannot serve on {self.config.host}:'
                                f'{self.config.port} ({error})') from None
         self.url = f'ws://{self.config.host}:{port}'
-        for failed in lower_process_priority(self.config.nice):  # the server's threads too
-            self.get_logger().warn(f'priority left as it is: {failed}')
         self.get_logger().info(
             f'Foxglove bridge at {self.url} ({len(self.forwards)} topics; in Foxglove: Open '
             f'connection, Foxglove WebSocket, this URL; or https://app.foxglove.dev/?ds='
