@@ -344,7 +344,7 @@ def test_the_interleaved_cost_benchmark_runs_and_prints_its_table(tmp_path):
     """bench_graph.py --foxglove-interleaved end to end: the graph, the bridge, a client."""
     result = subprocess.run(
         [sys.executable, str(Path(__file__).parent / 'benchmarks' / 'bench_graph.py'),
-         '--foxglove-interleaved', '3', '--graph-steps', '1500'],
+         '--foxglove-interleaved', '2', '--graph-steps', '1200'],
         capture_output=True, text=True, timeout=300, cwd=tmp_path)
     assert result.returncode == 0, result.stdout[-2000:] + result.stderr[-3000:]
     assert '| alone |' in result.stdout and '| watched |' in result.stdout, result.stdout

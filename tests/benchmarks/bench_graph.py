@@ -370,14 +370,16 @@ def foxglove_interleaved(steps: int, period_s: float, workdir: Path, pace_update
     with (workdir / 'interleaved' / 'metrics.csv').open() as handle:
         timeline = [(float(row['wall_time']), float(row['act/count']))
                     for row in csv.DictReader(handle) if row.get('act/count')]
-    rates = phase_rates(timeline, toggler.phases, settle_s=2.0)
+    settle_s = min(2.0, period_s / 3.0)  # the bridge takes or drops its readers within a poll
+    rates = phase_rates(timeline, toggler.phases, settle_s)
     alone = [rate for watched, rate in rates if not watched]
     watched = [rate for watched, rate in rates if watched]
     slowdowns = paired_slowdowns(rates)
     slowdown = mean_ci(slowdowns)
     print(f'one lockstep run of {run["steps"]} steps ({run["steps_per_s"]:.1f} steps/s), a '
           f'client on the {channels} channels for {period_s:g} s, then none for {period_s:g} s, '
-          f'in turns ({toggler.received} messages to it); the first 2 s of a phase left out; '
+          f'in turns ({toggler.received} messages to it); the first {settle_s:.2g} s of a phase '
+          f'left out; '
           f'graph_viewer {viewer or "defaults"}\n')
     print('| phases | n | steps/s (mean) |\n|---|---|---|')
     print(f'| alone | {len(alone)} | {statistics.mean(alone):.1f} |')
