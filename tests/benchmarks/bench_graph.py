@@ -241,15 +241,21 @@ def table(graph: dict, local: dict) -> str:
 
 
 class Watcher(threading.Thread):
-    """A Foxglove client on its own thread: connects when the bridge serves, takes everything."""
+    """
+    A Foxglove client on its own thread: connects when the bridge serves, takes everything.
 
-    def __init__(self, port: int, channels: str, legacy: bool):
+    ``period_s``: instead of watching to the end, watch for ``period_s``, leave for
+    ``period_s``, and so on (``phases``: (wall time from, to, watched)).
+    """
+
+    def __init__(self, port: int, channels: str, legacy: bool, period_s: float = 0.0):
         super().__init__(daemon=True)
-        self.channels, self.legacy = channels, legacy
+        self.channels, self.legacy, self.period_s = channels, legacy, period_s
         self.url = f'ws://127.0.0.1:{port}'
         self.stop = threading.Event()
         self.received = 0
         self.by_topic = {}
+        self.phases = []
 
     def run(self) -> None:
         asyncio.run(self._watch())
@@ -258,18 +264,25 @@ class Watcher(threading.Thread):
         sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
         from foxglove_client import FoxgloveClient, SDK_SUBPROTOCOL, SUBPROTOCOL
         protocols = (SUBPROTOCOL,) if self.legacy else (SDK_SUBPROTOCOL, SUBPROTOCOL)
+        left = time.time()
         while not self.stop.is_set():
             try:
                 async with FoxgloveClient(self.url, protocols) as client:
                     await client.read_for(1.0)  # the advertisements
                     await client.subscribe(self._chosen(client.channels))
-                    while not self.stop.is_set():
+                    joined = time.time()
+                    while not self.stop.is_set() and not (
+                            self.period_s and time.time() - joined >= self.period_s):
                         await client.read_for(0.5)
                         for message in client.received:
                             self.by_topic[message.topic] = self.by_topic.get(message.topic, 0) + 1
                         self.received += len(client.received)
                         client.received.clear()
-                return
+                if not self.period_s:
+                    return
+                self.phases += [(left, joined, False), (joined, time.time(), True)]
+                left = time.time()
+                await asyncio.sleep(self.period_s)
             except (OSError, asyncio.TimeoutError):  # not serving yet (or gone: then stopped)
                 await asyncio.sleep(0.2)
 
@@ -282,35 +295,10 @@ class Watcher(threading.Thread):
         return []
 
 
-class Toggler(Watcher):
-    """A client that watches for ``period_s``, leaves for ``period_s``, and so on: the phases."""
-
-    def __init__(self, port: int, channels: str, period_s: float):
-        super().__init__(port, channels, legacy=False)
-        self.period_s = period_s
-        self.phases = []
-        """(wall time from, to, watched): when the client was subscribed, and when not."""
-
-    async def _watch(self) -> None:
-        sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-        from foxglove_client import FoxgloveClient, SDK_SUBPROTOCOL, SUBPROTOCOL
-        left = time.time()
-        while not self.stop.is_set():
-            try:
-                async with FoxgloveClient(self.url, (SDK_SUBPROTOCOL, SUBPROTOCOL)) as client:
-                    await client.read_for(1.0)  # the advertisements
-                    await client.subscribe(self._chosen(client.channels))
-                    joined = time.time()
-                    self.phases.append((left, joined, False))
-                    while time.time() - joined < self.period_s and not self.stop.is_set():
-                        await client.read_for(0.5)
-                        self.received += len(client.received)
-                        client.received.clear()
-                left = time.time()
-                self.phases.append((joined, left, True))
-                await asyncio.sleep(self.period_s)
-            except (OSError, asyncio.TimeoutError):  # not serving yet
-                await asyncio.sleep(0.2)
+def _free_port() -> int:
+    with socket.socket() as probe:
+        probe.bind(('127.0.0.1', 0))
+        return probe.getsockname()[1]
 
 
 def phase_rates(timeline, phases, settle_s: float) -> list:
@@ -359,7 +347,7 @@ def foxglove_interleaved(steps: int, period_s: float, workdir: Path, pace_update
                          channels: str, viewer: dict) -> int:
     """One graph run with the bridge; a client watches and leaves in turns; print the cost."""
     port = _free_port()
-    toggler = Toggler(port, channels, period_s)
+    toggler = Watcher(port, channels, legacy=False, period_s=period_s)
     toggler.start()
     run = graph_run(steps, workdir, pace_updates, 'interleaved',
                     ('--foxglove', '--foxglove-port', str(port)),
@@ -393,12 +381,6 @@ def foxglove_interleaved(steps: int, period_s: float, workdir: Path, pace_update
               f'{slowdown.n} (sd {slowdown.sd:.1f}): target <= '
               f'{100 * FOXGLOVE_COST_TARGET:g} % {shown} |')
     return 0
-
-
-def _free_port() -> int:
-    with socket.socket() as probe:
-        probe.bind(('127.0.0.1', 0))
-        return probe.getsockname()[1]
 
 
 def foxglove_cost(pairs: int, steps: int, workdir: Path, pace_updates: float,

@@ -7,6 +7,11 @@ from typing import List
 TASKS = Path('/proc/self/task')
 
 
+def lower_thread_priority(tid: int, nice: int) -> None:
+    """Add ``nice`` to thread ``tid``'s niceness, up to 19 (OSError, AttributeError: not so)."""
+    os.setpriority(os.PRIO_PROCESS, tid, min(os.getpriority(os.PRIO_PROCESS, tid) + nice, 19))
+
+
 def lower_process_priority(nice: int) -> List[str]:
     """
     Add ``nice`` to the niceness of every thread this process has now; return what failed.
@@ -24,8 +29,7 @@ def lower_process_priority(nice: int) -> List[str]:
         return [f'threads not listed ({error})']
     for tid in tids:
         try:
-            lowered = min(os.getpriority(os.PRIO_PROCESS, tid) + nice, 19)
-            os.setpriority(os.PRIO_PROCESS, tid, lowered)
+            lower_thread_priority(tid, nice)
         except (AttributeError, OSError) as error:  # gone meanwhile, or not allowed
             if (TASKS / str(tid)).exists():
                 failed.append(f'thread {tid}: {error}')

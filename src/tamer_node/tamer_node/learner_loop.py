@@ -20,13 +20,13 @@ metrics say so. ``update_clock: wall`` is the old fixed rate per wall second (no
 
 import collections
 import math
-import os
 from pathlib import Path
 import threading
 import time
 from typing import Callable, List, Optional
 
 from attention_common.log_budget import LogBudget
+from attention_common.priority import lower_thread_priority as lower_thread
 import numpy as np
 from tamer_node.acting import SnapshotSlot
 from tamer_node.buffer import collate, FeedbackBuffer, Sample
@@ -388,7 +388,6 @@ def lower_thread_priority(nice: int, log: Callable[[str, str], None]) -> None:
     if nice <= 0:
         return
     try:
-        tid = threading.get_native_id()
-        os.setpriority(os.PRIO_PROCESS, tid, os.getpriority(os.PRIO_PROCESS, tid) + nice)
+        lower_thread(threading.get_native_id(), nice)
     except (AttributeError, OSError) as error:  # not Linux, or not allowed: run as it is
         log('warn', f'learner thread priority left as it is ({error})')
