@@ -1,5 +1,6 @@
 """A recorded training run, its bag read back, and the session replayed into a fresh learner."""
 
+import bisect
 import csv
 import json
 from pathlib import Path
@@ -80,6 +81,29 @@ def test_a_recorded_run_leaves_a_bag_that_rosbag2_readers_open(recorded_run):
     assert json.loads(custom['attention.launch_options'])['seed'] == 4
 
 
+def _executed_actions(bag_dir: Path) -> dict:
+    """Step stamp -> the action the world executed on it: an env_status names the action that
+    led to its step, so it belongs to the newest observation before it."""
+    from attention_bringup.gallery import cdr_header_stamp_ns
+    from attention_bringup.replay.session import executed_action
+    from session_bag.reader import BagReader
+    observations, statuses = set(), []
+    for message in BagReader(bag_dir).messages():
+        if message.topic == '/observation':
+            observations.add(cdr_header_stamp_ns(message.data))
+        elif message.topic == '/env_status':
+            found = executed_action(message.data)
+            if found is not None and found[1] is not None:
+                statuses.append(found)
+    steps = sorted(observations)
+    executed = {}
+    for stamp, action in statuses:
+        earlier = bisect.bisect_left(steps, stamp)
+        if earlier:
+            executed[steps[earlier - 1]] = action
+    return executed
+
+
 def _replay(run_dir: Path, out: Path, *options: str) -> subprocess.CompletedProcess:
     return subprocess.run([str(BIN / 'attention_replay'), str(run_dir), '--run-dir', str(out),
                            '--quiet', *options], capture_output=True, text=True, timeout=300)
@@ -112,20 +136,18 @@ def test_the_session_replays_into_a_fresh_learner_that_then_acts(recorded_run, t
     with open(tmp_path / 'replay' / 'replay_steps.csv') as steps:
         rows = list(csv.DictReader(steps))
     assert len(rows) == summary['steps'] and all(r['replayed_action'] != '' for r in rows)
-    # It learned every feedback on the action the session's agent executed on that step.
-    from attention_bringup.replay.session import replay_items
-    from session_bag.reader import BagReader
+    # It learned every feedback on the action the session's agent executed on that step: the
+    # world says it in the next step's env_status (read here by stamp, whatever the bag's order).
     from tamer_node.persistence import load_checkpoint
-    executed = {}  # a step's first copy carries its action (a re-sent observation has none)
-    for item in replay_items(BagReader(run_dir / 'bag').messages()):
-        if item.topic == 'observation':
-            executed.setdefault(item.stamp, item.executed)
+    executed = _executed_actions(run_dir / 'bag')
     buffer = load_checkpoint(tmp_path / 'replay')['buffer']
     count = min(int(buffer['added']), int(buffer['capacity']))
     learned = list(zip(buffer['columns']['stamps'][:count].tolist(),
                        buffer['columns']['actions'][:count].tolist()))
     assert len(learned) >= 0.5 * bag['/feedback_stamped']
-    assert all(executed[stamp] == action for stamp, action in learned)
+    wrong = [(stamp, action, executed.get(stamp)) for stamp, action in learned
+             if executed.get(stamp) != action]
+    assert not wrong, f'{len(wrong)} of {len(learned)} (stamp, learned, executed): {wrong[:5]}'
     disagreed = sum(r['agree'] == '0' for r in rows)
     # (counted only once it happens: a learner that agreed on every step has no such counter)
     assert int(summary['metrics'].get('act/taken_differs', 0)) == disagreed

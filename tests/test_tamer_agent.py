@@ -755,6 +755,34 @@ def test_feedback_is_learned_on_the_action_taken_not_the_agent_s_answer(agents, 
     assert {s.stamp: s.action for s in resumed.buffer.samples()} == samples
 
 
+@pytest.mark.parametrize('await_taken', [False, True])
+def test_a_feedback_that_overtakes_its_steps_action_taken_waits_for_it(agents, await_taken):
+    # Topics keep no order between them: a replay's feedback may reach the learner before the
+    # action_taken it sent earlier. With await_taken the feedback waits for it (up to
+    # saliency_timeout_s, 3 s here); without, it is learned on the agent's own answer (alpha
+    # 0: no saliency image is awaited).
+    agent = agents(saliency_timeout_s=3.0, await_taken=await_taken, alpha=0.0)
+    answers = play(agent, 3)
+    taken = (answers[stamp(1)] + 1) % agent.task.num_actions
+    agent.on_feedback(1.0, 'stamped', stamp(1))
+    time.sleep(0.5)
+    agent.on_action_taken(stamp(1), taken)
+    assert processed(agent, 1)
+    [sample] = agent.buffer.samples()
+    assert sample.action == (taken if await_taken else answers[stamp(1)])
+
+
+def test_a_feedback_waiting_for_an_action_taken_that_never_comes_is_learned_after_the_timeout(
+        agents):
+    agent = agents(saliency_timeout_s=0.5, await_taken=True, alpha=0.0)
+    answers = play(agent, 3)
+    started = time.monotonic()
+    agent.on_feedback(1.0, 'stamped', stamp(1))
+    assert processed(agent, 1)
+    assert time.monotonic() - started >= 0.5
+    assert [s.action for s in agent.buffer.samples()] == [answers[stamp(1)]]
+
+
 def test_explore_takes_a_share_of_decisions_at_random_and_learns_on_them(agents, tmp_path):
     greedy = agents(tmp_path / 'greedy')
     acted = play(greedy, 30)

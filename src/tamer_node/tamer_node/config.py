@@ -157,6 +157,10 @@ class TamerConfig:
     where it is right, an action it was taught is bad elsewhere (Fetch: the pick-up in front of
     the target, after many wrong pick-ups: 0 of 99 held-out rooms solved, 437 of 454 with 0.1;
     docs/words/). Counted in act/explored."""
+    await_taken: bool = False
+    """A feedback waits (at most ``saliency_timeout_s``) until every step it credits has its
+    ``action_taken``: attention_replay sets it, as that action travels on its own topic and
+    could come after the feedback, which would then be learned on the agent's own answer."""
     keep_tied_action: bool = False
     """With greedy_margin > 0: a tie that includes the previous step's action keeps it, so the
     agent changes what it does only when H prefers another action (runs of one action are

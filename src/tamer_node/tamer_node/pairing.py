@@ -90,11 +90,27 @@ def to_decisions(steps: Dict[int, float], history: StepHistory) -> Dict[int, flo
 
 def settled(event: FeedbackEvent, history: StepHistory, config: TamerConfig,
             wants_companion: bool) -> bool:
-    """Return whether no step ``event`` credits can still get its companion image."""
-    if not wants_companion or event.status != 'ok':
+    """
+    Return whether nothing the steps ``event`` credits wait for can still come.
+
+    That is their companion image (``wants_companion``) and, with ``await_taken``, the action
+    the world took on them (a replay's ``action_taken``, which travels on its own topic and may
+    come after the feedback).
+    """
+    if event.status != 'ok' or not (wants_companion or config.await_taken):
+        return True
+    steps = credit(event, history, config)
+    if config.await_taken and not all(_taken(history, stamp) for stamp in steps):
+        return False
+    if not wants_companion:
         return True
     companion = companion_kind(config.input_image)
-    return all(history.settled(stamp, companion) for stamp in credit(event, history, config))
+    return all(history.settled(stamp, companion) for stamp in steps)
+
+
+def _taken(history: StepHistory, stamp: int) -> bool:
+    record = history.get(stamp)
+    return record is not None and record.taken is not None
 
 
 def companion_kind(input_image: str) -> str:

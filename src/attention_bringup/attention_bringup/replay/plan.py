@@ -177,7 +177,7 @@ def build_plan(options: ReplayOptions, bin_dir: Path, cwd: Path,
         run_dir = cwd / 'runs' / f'{stamp}-replay-{named}{condition}-seed{seed}'
     # It learns on the session's actions; its own answers, compared with them, are greedy.
     overrides = {'tamer_node': {'run_dir': str(run_dir), 'resume': False, 'seed': seed,
-                                'task': task, 'explore': 0.0},
+                                'task': task, 'explore': 0.0, 'await_taken': True},
                  'saliency_node': {'task': task}}
     merged = merge_params([merged, overrides])
     params = {node: node_params(merged, node) for node in REPLAYED_NODES}
