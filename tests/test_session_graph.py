@@ -82,8 +82,11 @@ def test_a_recorded_run_leaves_a_bag_that_rosbag2_readers_open(recorded_run):
 
 
 def _executed_actions(bag_dir: Path) -> dict:
-    """Step stamp -> the action the world executed on it: an env_status names the action that
-    led to its step, so it belongs to the newest observation before it."""
+    """
+    Return step stamp -> the action the world executed on it.
+
+    An env_status names the action that led to its step: that of the newest observation before.
+    """
     from attention_bringup.gallery import cdr_header_stamp_ns
     from attention_bringup.replay.session import executed_action
     from session_bag.reader import BagReader
