@@ -31,6 +31,15 @@ def wait_until(predicate: Callable[[], bool], timeout: float, interval: float = 
     return bool(predicate())
 
 
+def thread_niceness(pid: int) -> Dict[int, int]:
+    """Return each thread's niceness (tid -> nice) of process ``pid``."""
+    niceness = {}
+    for task in Path(f'/proc/{pid}/task').iterdir():
+        fields = (task / 'stat').read_text().rsplit(')', 1)[1].split()
+        niceness[int(task.name)] = int(fields[16])  # field 19 of stat: nice
+    return niceness
+
+
 def _format_param(value) -> str:
     if isinstance(value, bool):
         return 'true' if value else 'false'

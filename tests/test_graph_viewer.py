@@ -26,7 +26,7 @@ from graph_viewer.lichtblick import to_lichtblick
 from graph_viewer.plots import (action_values_record, env_status_record, metrics_record,
                                 plot_topic, PLOTTED)
 from graph_viewer.subprotocol import LEGACY, rewrite_request, rewrite_response, SDK
-from harness import free_port, listening_sockets, loopback_address
+from harness import free_port, listening_sockets, loopback_address, thread_niceness
 from mcap.reader import make_reader
 import pytest
 from rclpy.serialization import deserialize_message
@@ -184,7 +184,7 @@ async def _watch(url: str, frames_for_s: float, run_dir: Path) -> FoxgloveClient
         assert client.protocol == SUBPROTOCOL
         assert await client.wait_for_channels(WATCHED, 30.0), sorted(client.channels)
         client.listening = listening_sockets()
-        client.niceness = _niceness(json.loads((run_dir / 'pids.json').read_text())[
+        client.niceness = thread_niceness(json.loads((run_dir / 'pids.json').read_text())[
             'graph_viewer'])
         await client.subscribe(WATCHED)
         while not client.of('/observation') and time.monotonic() < deadline:
@@ -196,15 +196,6 @@ async def _watch(url: str, frames_for_s: float, run_dir: Path) -> FoxgloveClient
     finally:
         await client.__aexit__(None, None, None)
     return client
-
-
-def _niceness(pid: int) -> dict:
-    """Return each thread's niceness (tid -> nice) of process ``pid``."""
-    niceness = {}
-    for task in Path(f'/proc/{pid}/task').iterdir():
-        fields = (task / 'stat').read_text().rsplit(')', 1)[1].split()
-        niceness[int(task.name)] = int(fields[16])  # field 19 of stat: nice
-    return niceness
 
 
 def _flat(record: dict, prefix: str = '') -> dict:
@@ -325,9 +316,11 @@ def _bench_graph():
 def test_each_phase_counts_the_steps_of_its_own_seconds_after_it_settled():
     bench = _bench_graph()
     timeline = [(t, 100.0 * t if t < 10 else 1000.0 + 80.0 * (t - 10)) for t in range(31)]
+    timeline += [(t, 2600.0) for t in range(31, 40)]  # stopped: the learner still writes rows
     phases = [(-5.0, 0.0, False),  # before the graph stepped: left out
               (0.0, 10.0, False), (10.0, 20.0, True), (20.0, 30.0, False),
-              (30.0, 40.0, True)]  # after it stopped: left out
+              (27.0, 35.0, True),  # ran past its last step (at 30 s): left out
+              (35.0, 39.0, False)]  # after it stopped: left out
     rates = bench.phase_rates(timeline, phases, settle_s=2.0)
     assert rates == [(False, pytest.approx(100.0)), (True, pytest.approx(80.0)),
                      (False, pytest.approx(80.0))]

@@ -195,7 +195,8 @@ def test_a_killed_recorder_stops_the_run_and_its_bag_is_repaired(tmp_path):
     import signal
     import time
 
-    from harness import wait_until
+    from harness import thread_niceness, wait_until
+    from session_bag.config import RecorderConfig
     run_dir = tmp_path / 'run'
     launcher = subprocess.Popen([str(BIN / 'attention_train'), '--steps', '100000', '--record',
                                  '--run-dir', str(run_dir), '--quiet'],
@@ -206,7 +207,11 @@ def test_a_killed_recorder_stops_the_run_and_its_bag_is_repaired(tmp_path):
                 'message_count'] > 200 or launcher.poll() is not None, 150, interval=0.2)
         assert launcher.poll() is None, launcher.communicate()[1][-4000:]
         time.sleep(0.3)
-        os.kill(_json(run_dir / 'pids.json')['session_recorder'], signal.SIGKILL)
+        recorder = _json(run_dir / 'pids.json')['session_recorder']
+        # Every thread of the recorder yields the cores to the graph, DDS's too.
+        niceness = thread_niceness(recorder)
+        assert len(niceness) > 1 and min(niceness.values()) >= RecorderConfig.nice, niceness
+        os.kill(recorder, signal.SIGKILL)
         _, stderr = launcher.communicate(timeout=90)
     finally:
         if launcher.poll() is None:

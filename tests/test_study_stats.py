@@ -131,6 +131,25 @@ def test_mean_ci_of_small_samples():
     assert two.mean == 2.0 and two.high - 2.0 == pytest.approx(12.706204736 * 1.0, rel=1e-9)
 
 
+def test_median_ci_is_the_order_statistics_of_the_sign_test():
+    # n = 10: P(X < 2 or X > 8) for X ~ Bin(10, 1/2) is 0.021, so (x(2), x(9)) is the smallest
+    # symmetric interval with at least 95 %; an outlier moves neither bound.
+    interval = stats.median_ci([5, 1, 9, 3, 7, 2, 10, 4, 8, 6])
+    assert (interval.n, interval.median, interval.low, interval.high) == (10, 5.5, 2.0, 9.0)
+    assert stats.median_ci([5, 1, 9, 3, 7, 2, -500, 4, 8, 6]).low == 1.0
+    assert stats.median_ci([1.0, 2.0, 3.0]).low is None  # too few for 95 %
+    assert stats.median_ci([]).median is None
+
+
+def test_median_interval_covers_the_true_median_95_percent_of_the_time():
+    rng = np.random.default_rng(3)
+    covered = 0
+    for _ in range(2000):
+        interval = stats.median_ci(rng.standard_cauchy(12) + 4.0)  # heavy tails, median 4
+        covered += interval.low <= 4.0 <= interval.high
+    assert covered / 2000 >= 0.95
+
+
 def test_holm_by_hand():
     # Sorted 0.01, 0.03, 0.04 (m = 3): 3 * 0.01, max(0.03, 2 * 0.03), max(0.06, 0.04).
     assert stats.holm_adjust([0.04, 0.01, None, 0.03]) == pytest.approx(

@@ -42,7 +42,7 @@ import tempfile
 import threading
 import time
 
-from attention_bringup.experiment.stats import mean_ci
+from attention_bringup.experiment.stats import mean_ci, median_ci
 from attention_common.executors import executor_name
 from machine_info import machine
 from tamer_node.config import TamerConfig
@@ -305,9 +305,11 @@ def phase_rates(timeline, phases, settle_s: float) -> list:
     """
     Return (watched, steps/s) of each phase the graph stepped through from end to end.
 
-    ``timeline``: (wall time, steps acted) rows, as metrics.csv has them (one a second);
-    ``phases``: (from, to, watched); the first ``settle_s`` of a phase is left out (the bridge
-    takes or drops its readers within a poll, DDS matches them within a moment).
+    ``timeline``: (wall time, steps acted) rows, as metrics.csv has them (one a second; the
+    learner goes on writing them, with no new steps, while the graph stops); ``phases``: (from,
+    to, watched); the first ``settle_s`` of a phase is left out (the bridge takes or drops its
+    readers within a poll, DDS matches them within a moment). A phase that began before the
+    first step or ended after the last is left out: its idle seconds are not the graph's speed.
     """
     def steps_at(when):
         for (t0, n0), (t1, n1) in zip(timeline, timeline[1:]):
@@ -315,14 +317,16 @@ def phase_rates(timeline, phases, settle_s: float) -> list:
                 return n0 + (n1 - n0) * (when - t0) / (t1 - t0) if t1 > t0 else n0
         return None
 
+    moving = [(t0, t1) for (t0, n0), (t1, n1) in zip(timeline, timeline[1:]) if n1 > n0]
+    if not moving:
+        return []
+    began, stopped = moving[0][0], moving[-1][1]
     rates = []
     for start, end, watched in phases:
         start += settle_s
-        if end - start < 1.0:
+        if end - start < 1.0 or start < began or end > stopped:
             continue
         first, last = steps_at(start), steps_at(end)
-        if first is None or last is None or not last > first:
-            continue  # before the graph stepped or after it stopped
         rates.append((watched, (last - first) / (end - start)))
     return rates
 
@@ -373,14 +377,22 @@ def foxglove_interleaved(steps: int, period_s: float, workdir: Path, pace_update
     print(f'| alone | {len(alone)} | {statistics.mean(alone):.1f} |')
     print(f'| watched | {len(watched)} | {statistics.mean(watched):.1f} |')
     print(f'\nslowdown of each watched phase (%): {", ".join(f"{v:.1f}" for v in slowdowns)}')
+    median = median_ci(slowdowns)
     if slowdown.high is not None:
-        shown = ('met' if slowdown.high <= 100 * FOXGLOVE_COST_TARGET else
-                 'missed' if slowdown.low > 100 * FOXGLOVE_COST_TARGET else 'neither shown')
-        print(f'\n| slowdown of a watched phase against the phases alone beside it, mean [95 % '
-              f'CI] | {slowdown.mean:.1f} % [{slowdown.low:.1f}, {slowdown.high:.1f}] over '
-              f'{slowdown.n} (sd {slowdown.sd:.1f}): target <= '
-              f'{100 * FOXGLOVE_COST_TARGET:g} % {shown} |')
+        print(f'\n| slowdown of a watched phase against the phases alone beside it | {slowdown.n} '
+              f'phases |\n|---|---|\n| mean [95 % CI] | {slowdown.mean:.1f} % '
+              f'[{slowdown.low:.1f}, {slowdown.high:.1f}] (sd {slowdown.sd:.1f}): target <= '
+              f'{100 * FOXGLOVE_COST_TARGET:g} % {_verdict(slowdown.low, slowdown.high)} |')
+    if median.high is not None:  # robust to the odd wild phase (a busy core elsewhere)
+        print(f'| median [95 % CI, sign test] | {median.median:.1f} % [{median.low:.1f}, '
+              f'{median.high:.1f}]: target <= {100 * FOXGLOVE_COST_TARGET:g} % '
+              f'{_verdict(median.low, median.high)} |')
     return 0
+
+
+def _verdict(low: float, high: float) -> str:
+    target = 100 * FOXGLOVE_COST_TARGET
+    return 'met' if high <= target else 'missed' if low > target else 'neither shown'
 
 
 def foxglove_cost(pairs: int, steps: int, workdir: Path, pace_updates: float,

@@ -31,8 +31,9 @@ class RecorderConfig:
     topics: str = ''
     """Comma-separated topics to record ('' = every topic of the graph, session_bag.recorded)."""
     nice: int = 5
-    """Niceness the recorder adds to itself at start: the graph's nodes get the CPU first, and
-    the frame writers hold 100 frames while it catches up (0: as the other nodes)."""
+    """Niceness the recorder adds to every thread of its own at start (DDS's too; later ones
+    inherit it): the graph's nodes get the CPU first, and the frame writers hold 100 frames
+    while it catches up (0: as the other nodes)."""
 
     def validate(self) -> None:
         """Raise ValueError naming the first impossible value."""

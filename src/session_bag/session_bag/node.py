@@ -15,12 +15,12 @@ written (a full disk) is logged and counted; the node keeps going.
 import datetime
 import functools
 import json
-import os
 from pathlib import Path
 
 from attention_common.executors import with_message_info
 from attention_common.node_main import Closing, run_node, StartupError
 from attention_common.parameters import declare_dataclass
+from attention_common.priority import lower_process_priority
 from attention_common.run_files import OPTIONS_FILE, PARAMS_FILE
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
@@ -84,8 +84,9 @@ class RecorderNode(Closing, Node):
             raise StartupError(f'session_recorder: {error}') from error
         self.writer = writer
         self.errors = 0
-        if self.config.nice:
-            os.nice(self.config.nice)
+        # Every thread (os.nice lowers the calling one only): DDS's, and those started later.
+        for failed in lower_process_priority(self.config.nice):
+            self.get_logger().warning(f'priority left as it is: {failed}')
         self._names = {}
         chosen = [BY_NAME[name] for name in self.config.topic_names()]
         for topic in chosen:  # rosbags' type store loads in 0.2-1 s: now, not at a first frame
