@@ -96,7 +96,7 @@ class GraphViewerNode(Closing, Node):
         self._milestone_of = lambda values: task.milestone_of(values, DEFAULT_RADIUS)
         # DDS's threads now; the server's and the relay's, started below, inherit it.
         for failed in lower_process_priority(self.config.nice):
-            self.get_logger().warn(f'priority left as it is: {failed}')
+            self.get_logger().warning(f'priority left as it is: {failed}')
         self.errors = 0
         self.foxglove = foxglove.Context()
         self.watchers = Watchers()
