@@ -2,10 +2,12 @@
 
 import math
 import signal
+import time
 
 from attention_common import qos, topics
 from attention_common.image_codec import image_to_numpy
 from attention_common.joy_actions import action_to_joy
+from attention_common.preview import preview_topic
 from attention_common.stamps import frames_to_ns, stamp_to_ns
 from diagnostic_msgs.msg import DiagnosticArray
 from env_node.status import NO_LATENCY, parse_status
@@ -14,6 +16,7 @@ from harness import TopicProbe, wait_until
 import pytest
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
+from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Image, Joy
 
@@ -23,6 +26,8 @@ NOOP, UP, RIGHT, LEFT, DOWN = 0, 2, 3, 4, 5
 STARTUP_S = 30.0  # importing, making the emulator and the warm-up, on a busy machine
 REPLY_S = 10.0
 FRAMESKIP = 4
+PREVIEW_READER = QoSProfile(depth=1000, reliability=ReliabilityPolicy.BEST_EFFORT)
+"""Keeps every preview that comes (the previews are best effort)."""
 
 
 class Learner:
@@ -110,6 +115,33 @@ def test_lockstep_frames_stamps_and_motion(start_node, probe):
     # The env times its closed loop: the first step answered nothing, later ones one action each.
     assert learner.status_at(first_ns)['action_latency_ms'] == NO_LATENCY
     assert 0.0 < last['action_latency_ms'] < 1000.0 * REPLY_S
+    assert env.stop(signal.SIGINT) == 0
+
+
+def test_the_previews_are_the_steps_own_messages_thinned_to_their_rate(start_node, probe):
+    """A viewer reads observation/preview and env_status/preview: the same steps, fewer."""
+    learner = Learner(probe)
+    previews = {topic: probe.subscribe(msg_type, preview_topic(topic), PREVIEW_READER)
+                for topic, msg_type in ((topics.OBSERVATION, Image),
+                                        (topics.ENV_STATUS, DiagnosticArray))}
+    env = start_node('env_node', {'warmup_steps': 0, 'action_timeout': 30.0,
+                                  'preview_rate_hz': 10.0})
+    observation = learner.connect()
+    for log in previews.values():
+        assert probe.wait_matched(log, timeout=STARTUP_S)
+    started = time.monotonic()
+    for _ in range(150):  # lockstep, as fast as this probe answers
+        observation = learner.step(observation, RIGHT)
+    elapsed = time.monotonic() - started
+    learner.status_at(stamp_to_ns(observation.header.stamp))  # the last step's status is here
+    full = {topics.OBSERVATION: set(stamps(learner.observations.snapshot())),
+            topics.ENV_STATUS: set(stamps(learner.statuses.snapshot()))}
+    for topic, log in previews.items():
+        thinned = stamps(log.snapshot())
+        assert thinned, f'nothing on {preview_topic(topic)}'
+        assert set(thinned) <= full[topic]  # the steps' own messages, nothing made up
+        # At most 10 a second, bursts of 5: far fewer than the 150 steps sent.
+        assert len(thinned) <= 5 + 10.0 * elapsed + 1, (topic, len(thinned), elapsed)
     assert env.stop(signal.SIGINT) == 0
 
 
@@ -267,9 +299,11 @@ def test_a_signal_during_start_up_exits_cleanly(start_node, sig):
     ({'frameskip': 0}, 'frameskip'),
     ({'action_timeout': 0.0}, 'action_timeout'),
     ({'rate_hz': 'fast'}, 'rate_hz'),
+    ({'preview_rate_hz': -1.0}, 'preview_rate_hz must be >= 0'),
     ({'task': 'pong'}, "unknown task 'pong'; installed tasks: doorkey, fetch, montezuma"),
     ({'task': 'doorkey', 'distractors': 99}, 'distractors must be in 0..12'),
-], ids=['frameskip', 'action_timeout', 'rate_hz', 'task', 'doorkey_distractors'])
+], ids=['frameskip', 'action_timeout', 'rate_hz', 'preview_rate_hz', 'task',
+        'doorkey_distractors'])
 def test_bad_parameters_stop_it_with_a_clear_message(start_node, params, message):
     env = start_node('env_node', params)
     assert env.process.wait(timeout=STARTUP_S) == 1

@@ -26,7 +26,8 @@ from graph_viewer.lichtblick import to_lichtblick
 from graph_viewer.plots import (action_values_record, env_status_record, metrics_record,
                                 plot_topic, PLOTTED)
 from graph_viewer.subprotocol import LEGACY, rewrite_request, rewrite_response, SDK
-from harness import free_port, listening_sockets, loopback_address, thread_niceness
+from harness import (free_port, listening_sockets, loopback_address, thread_niceness,
+                     TopicProbe, wait_until)
 from mcap.reader import make_reader
 import pytest
 from rclpy.serialization import deserialize_message
@@ -166,6 +167,8 @@ def test_a_split_of_three_becomes_two_nested_splits_with_its_proportions():
 # The real graph, watched from Foxglove's side of the protocol.
 
 WATCHED = ('/observation', '/metrics', '/plot/metrics', '/plot/env_status')
+READERS = 'graph_viewer_readers'
+"""The bridge's reading node."""
 
 
 async def _watch(url: str, frames_for_s: float, run_dir: Path) -> FoxgloveClient:
@@ -192,10 +195,21 @@ async def _watch(url: str, frames_for_s: float, run_dir: Path) -> FoxgloveClient
         client.first_frame_at = time.monotonic()
         await client.read_for(frames_for_s)
         client.frames_until = time.monotonic()
+        client.readers = _readers_of(('/observation', '/observation/preview',
+                                      '/env_status', '/env_status/preview'))
         await client.read_for(1.5)  # one more metrics period
     finally:
         await client.__aexit__(None, None, None)
     return client
+
+
+def _readers_of(names) -> dict:
+    """Return {topic: the names of the nodes that subscribe to it} as the ROS graph has them."""
+    with TopicProbe('graph_probe') as probe:
+        def readers(name):
+            return [info.node_name for info in probe.node.get_subscriptions_info_by_topic(name)]
+        wait_until(lambda: READERS in readers('/env_status/preview'), 10.0)
+        return {name: readers(name) for name in names}
 
 
 def _flat(record: dict, prefix: str = '') -> dict:
@@ -253,6 +267,11 @@ def test_foxglove_gets_the_frames_at_the_envs_rate(watched_session):
     assert abs(rate - env_rate) <= 0.1 * env_rate, (rate, env_rate)  # the env's rate, live
     if env_rate >= 15.0 * 0.9:  # an env that kept real time (not starved of CPU): 15 a second
         assert 15.0 * 0.9 <= rate <= 15.0 * 1.1, rate
+    # Read from the copies the env thins at the source: DDS never brings the bridge the rest.
+    readers = client.readers
+    assert READERS in readers['/observation/preview'], readers
+    assert READERS in readers['/env_status/preview'], readers
+    assert READERS not in readers['/observation'] + readers['/env_status'], readers
     image = deserialize_message(frames[-1].payload, Image)  # the ROS 2 message itself
     assert (image.width, image.height, image.encoding) == (160, 210, 'rgb8')
     assert client.channels['/observation']['schemaName'] == 'sensor_msgs/msg/Image'

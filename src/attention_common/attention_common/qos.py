@@ -74,3 +74,10 @@ WATCH_IMAGES = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
                           reliability=ReliabilityPolicy.BEST_EFFORT,
                           durability=DurabilityPolicy.VOLATILE)
 """The launcher's image samples (counting, the gallery): best effort, a late one may go."""
+
+NEWEST = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
+                    reliability=ReliabilityPolicy.BEST_EFFORT,
+                    durability=DurabilityPolicy.VOLATILE)
+"""A viewer's: the newest message only, best effort (a frame not drawn is no loss). The
+``<topic>/preview`` writers (``attention_common.preview``) and the Foxglove bridge's readers of
+images and per-step topics."""

@@ -2,6 +2,7 @@
 
 from dataclasses import dataclass
 
+from attention_common.preview import PREVIEW_RATE_HZ
 from attention_tasks.task import DEFAULT_TASK
 
 RUNTIME_PARAMETERS = ('paused',)
@@ -52,9 +53,15 @@ class EnvNodeConfig:
     """true: every episode, the first included, starts paused (its first observation is out,
     env_status says 'paused'): a person looks at the new room and says the goal (Fetch), then
     resumes (the console's button, or ``paused`` set false)."""
+    preview_rate_hz: float = PREVIEW_RATE_HZ
+    """Most messages a wall second on observation/preview and env_status/preview, the copies
+    a viewer reads (attention_common.preview: sent only while someone subscribes; real time's
+    every step passes); 0 = no preview topics (viewers then read the full topics)."""
 
     def validate(self) -> None:
         """Raise ValueError saying which value is impossible (the world checks its own)."""
         if self.rate_hz < 0 or self.action_timeout <= 0 or self.max_steps < 0:
             raise ValueError('rate_hz must be >= 0, action_timeout > 0 and max_steps >= 0 '
                              f'(got {self.rate_hz}, {self.action_timeout}, {self.max_steps})')
+        if not self.preview_rate_hz >= 0:
+            raise ValueError(f'preview_rate_hz must be >= 0, got {self.preview_rate_hz}')

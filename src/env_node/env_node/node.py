@@ -23,6 +23,7 @@ from attention_common.image_codec import numpy_to_image
 from attention_common.joy_actions import ACTION_MEANINGS, joy_to_action, JoyActionError
 from attention_common.node_main import Closing, run_node, StartupError
 from attention_common.parameters import declare_dataclass
+from attention_common.preview import Preview
 from attention_common.recorder_gate import nodes_unmatched
 from attention_common.stamps import ns_to_stamp, stamp_to_ns
 from attention_tasks.task import load_task, Step, UnknownTask
@@ -95,6 +96,9 @@ class EnvNode(Closing, Node):
             PointStamped, topics.AGENT_POSITION, qos.STEP_DATA)
         self._status_pub = self.create_publisher(DiagnosticArray, topics.ENV_STATUS, qos.STEP_DATA)
         self._clock_pub = self.create_publisher(ClockMsg, topics.CLOCK, qos.CLOCK)
+        self._obs_preview = Preview(self, Image, topics.OBSERVATION, config.preview_rate_hz)
+        self._status_preview = Preview(self, DiagnosticArray, topics.ENV_STATUS,
+                                       config.preview_rate_hz)
         self.create_subscription(Joy, topics.ACTION, self._on_action, qos.ACTIONS)
         self.add_on_set_parameters_callback(self._on_set_parameters)
 
@@ -151,6 +155,7 @@ class EnvNode(Closing, Node):
                                 'paused' if self._paused else 'running')
         self._status_msg.header.stamp = stamp
         self._status_pub.publish(self._status_msg)
+        self._status_preview.publish(self._status_msg)
         self._latency_ms = NO_LATENCY  # an answer is timed once (not again after a reset)
 
     def _publish_step(self, step: Step) -> None:
@@ -165,6 +170,7 @@ class EnvNode(Closing, Node):
                 self._timeout_timer.reset()  # (re)starts the wait for this answer
         # The observation first: the learner acts on it while the step's data goes out.
         self._obs_pub.publish(self._obs_msg)
+        self._obs_preview.publish(self._obs_msg)
         self._publish_step_data(step)
 
     def _advance(self, action: int) -> None:

@@ -11,7 +11,6 @@ from typing import Optional, Tuple
 
 from attention_common import qos, topics
 from diagnostic_msgs.msg import DiagnosticArray
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from session_bag.recorded import RECORDED, RecordedTopic, type_name
 from session_bag.schema import definition
 
@@ -45,13 +44,7 @@ def schema_of(topic: RecordedTopic) -> Tuple[str, bytes]:
     return name, definition(name).text.encode()
 
 
-NEWEST = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
-                    reliability=ReliabilityPolicy.BEST_EFFORT,
-                    durability=DurabilityPolicy.VOLATILE)
-"""A reader that holds the newest message only (DDS drops the older: nobody takes them)."""
-
-
-def viewer_qos(topic: RecordedTopic) -> QoSProfile:
+def viewer_qos(topic: RecordedTopic):
     """
     Return the bridge's QoS on ``topic``: a viewer never slows the graph.
 
@@ -60,7 +53,7 @@ def viewer_qos(topic: RecordedTopic) -> QoSProfile:
     receipts and credit, and metrics reliable and whole, as their publishers offer them.
     """
     if is_image(topic) or is_per_step(topic):
-        return NEWEST
+        return qos.NEWEST
     return topic.designed_qos
 
 

@@ -12,7 +12,9 @@ its speed, even with nobody watching). So a topic is subscribed only while a cli
 (its raw or its plot channel), on a node of its own that no executor spins, and a timer takes
 what came (``poll_hz``): per-step topics and images through a depth-1 reader, at most
 ``max_step_rate_hz`` / ``max_image_rate_hz`` (the newest), so DDS drops the rest and Python
-never sees them; a person's words, receipts, credit and metrics whole, in order. Every thread
+never sees them. The frames and env_status are read from the copies their sources thin to 30
+a second (``<topic>/preview``, attention_common.preview), so DDS does not even bring the
+rest. A person's words, receipts, credit and metrics come whole, in order. Every thread
 of it runs ``nice`` lower than the graph's (``attention_common.priority``): on busy cores the
 graph steps first and the viewer takes what is left.
 """
@@ -24,6 +26,7 @@ from urllib.parse import quote
 
 from attention_common.node_main import Closing, run_node, StartupError
 from attention_common.parameters import declare_dataclass
+from attention_common.preview import preview_topic, PREVIEWED
 from attention_common.priority import lower_process_priority
 from attention_common.stamps import stamp_to_ns
 from attention_tasks.montezuma.critical_positions import DEFAULT_RADIUS
@@ -43,6 +46,9 @@ from rclpy.serialization import deserialize_message
 LOG_THROTTLE_S = 10.0
 MAX_TAKES_PER_POLL = 1000
 """A whole topic's backlog is taken each poll, up to this (the rest at the next)."""
+SOURCE_CHECK_S = 1.0
+"""How often a watched topic's source is looked at again: its preview once one is published
+(a source started after the client subscribed), else the full topic."""
 
 
 class Watchers:
@@ -80,6 +86,11 @@ class Forward:
                                          context=context)
         self.reader = None
         """The subscription on the viewer's reading node while a client watches."""
+        self.preview = preview_topic(name) if topic.name in PREVIEWED else None
+        """The source's thinned copy of the topic (attention_common.preview), if it makes one."""
+        self.reading: Optional[str] = None
+        """The topic the reader reads: ``name`` or its preview."""
+        self.checked_at = -SOURCE_CHECK_S
 
 
 class GraphViewerNode(Closing, Node):
@@ -139,13 +150,15 @@ class GraphViewerNode(Closing, Node):
         for forward in self.forwards:
             watched = self.watchers.watched(forward.raw.id()) or (
                 forward.plot is not None and self.watchers.watched(forward.plot.id()))
-            if watched and forward.reader is None:
-                forward.reader = self.readers.create_subscription(
-                    forward.topic.msg_type, forward.name, _never_called,
-                    viewer_qos(forward.topic), raw=True)
-            elif not watched and forward.reader is not None:
+            source = self._source(forward, now) if watched else None
+            if forward.reader is not None and forward.reading != source:
                 self.readers.destroy_subscription(forward.reader)
-                forward.reader = None
+                forward.reader = forward.reading = None
+            if source is not None and forward.reader is None:
+                forward.reader = self.readers.create_subscription(
+                    forward.topic.msg_type, source, _never_called, viewer_qos(forward.topic),
+                    raw=True)
+                forward.reading = source
             if forward.reader is None:
                 continue
             if forward.limit is not None:  # a depth-1 reader: its newest, if it is time
@@ -160,6 +173,18 @@ class GraphViewerNode(Closing, Node):
                 if taken is None:
                     break
                 self._forward(forward, *taken)
+
+    def _source(self, forward: Forward, now: float) -> str:
+        """Return the topic to read for ``forward``: its preview while a source publishes one."""
+        if forward.preview is None:
+            return forward.name
+        if forward.reading is not None and now - forward.checked_at < SOURCE_CHECK_S:
+            return forward.reading
+        forward.checked_at = now
+        if (self.readers.count_publishers(forward.preview) > 0
+                or self.readers.count_publishers(forward.name) == 0):
+            return forward.preview
+        return forward.name  # a source that makes no preview (preview_rate_hz 0)
 
     def _forward(self, forward: Forward, data: bytes, info: dict) -> None:
         log_time = info.get('received_timestamp') or time.time_ns()

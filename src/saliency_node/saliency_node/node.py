@@ -18,6 +18,7 @@ from attention_common import qos, topics
 from attention_common.image_codec import image_to_numpy, ImageFormatError, numpy_to_image
 from attention_common.node_main import run_node, StartupError
 from attention_common.parameters import dataclass_specs
+from attention_common.preview import Preview
 from attention_common.recorder_gate import RecorderGate
 from attention_common.stamps import NS_PER_S, stamp_to_ns, StampGuard
 from diagnostic_msgs.msg import DiagnosticArray
@@ -81,6 +82,9 @@ class SaliencyNode(Node):
 
         self._saliency_pub = self.create_publisher(Image, topics.SALIENCY, qos.FRAMES_WRITER)
         self._mask_pub = self.create_publisher(Image, topics.SALIENCY_MASK, qos.FRAMES_WRITER)
+        rate_hz = self.settings.preview_rate_hz
+        self._saliency_preview = Preview(self, Image, topics.SALIENCY, rate_hz)
+        self._mask_preview = Preview(self, Image, topics.SALIENCY_MASK, rate_hz)
         self._gate = RecorderGate(self, self.settings.wait_for_recorder,
                                   (self._saliency_pub, self._mask_pub),
                                   self.settings.wait_for_recorder_s)
@@ -201,12 +205,21 @@ class SaliencyNode(Node):
             image, mask = self._maker.render(frame, scene, named, self.config)
             if image is None:
                 continue
-            self._gate.publish(self._saliency_pub, self._image(image, 'rgb8', header))
-            # (a mask is rendered only for a reader; while the gate holds, the recorder is one)
-            if self.settings.publish_mask and (not self._gate.is_open
-                                               or self._mask_pub.get_subscription_count()):
-                self._gate.publish(self._mask_pub, self._image(mask * 255, 'mono8', header))
+            saliency = self._image(image, 'rgb8', header)
+            self._gate.publish(self._saliency_pub, saliency)
+            self._saliency_preview.publish(saliency)
+            if self.settings.publish_mask:
+                self._publish_mask(mask, header)
             self.counters['saliency_published'] += 1
+
+    def _publish_mask(self, mask, header) -> None:
+        """Render the mask only for a reader (while the gate holds, the recorder is one)."""
+        msg = None
+        if not self._gate.is_open or self._mask_pub.get_subscription_count():
+            msg = self._image(mask * 255, 'mono8', header)
+            self._gate.publish(self._mask_pub, msg)
+        self._mask_preview.publish(
+            msg if msg is not None else lambda: self._image(mask * 255, 'mono8', header))
 
     @staticmethod
     def _image(array, encoding, header) -> Image:

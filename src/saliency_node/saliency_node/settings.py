@@ -10,6 +10,7 @@ import functools
 from pathlib import Path
 from typing import Mapping
 
+from attention_common.preview import PREVIEW_RATE_HZ
 from attention_common.recorder_gate import RECORDER_WAIT_S
 from attention_common.stamps import MAX_STAMP_JUMP_S, NS_PER_S
 from attention_common.utterance import MAX_UTTERANCE_CHARS
@@ -20,7 +21,7 @@ from saliency_node.matching import method_from_name
 from saliency_node.saliency import SaliencyConfig
 
 START_ONLY = ('task', 'templates_manifest', 'status_period', 'wait_for_recorder',
-              'wait_for_recorder_s')
+              'wait_for_recorder_s', 'preview_rate_hz')
 """Read at start only; every other parameter is settable at run time."""
 
 
@@ -76,6 +77,10 @@ class Settings(SaliencyConfig):
     continue each other: the env started over)."""
     publish_mask: bool = True
     """Also publish the mask (mono8, 0 or 255) on saliency_mask."""
+    preview_rate_hz: float = PREVIEW_RATE_HZ
+    """Most images a wall second on saliency/preview and saliency_mask/preview, the copies a
+    viewer reads (attention_common.preview: sent only while someone subscribes; real time's
+    every step passes); 0 = no preview topics. Read at start only."""
     status_period: float = 30.0
     """Wall seconds between the log lines of counts. Read at start only."""
     wait_for_recorder: str = ''
@@ -110,6 +115,7 @@ class Settings(SaliencyConfig):
                                               self.stamped_stream_timeout, 0.0)
         self.max_stamp_jump = _number('max_stamp_jump', self.max_stamp_jump, 1e-3)
         _flag('publish_mask', self.publish_mask)
+        self.preview_rate_hz = _number('preview_rate_hz', self.preview_rate_hz, 0.0)
         self.status_period = _number('status_period', self.status_period, 0.001)
         if not isinstance(self.wait_for_recorder, str):
             raise ValueError(
