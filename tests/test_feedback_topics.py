@@ -21,7 +21,7 @@ from attention_tasks.montezuma.reward import RewardFunction
 from diagnostic_msgs.msg import DiagnosticArray
 from feedback_node.utterances import UtteranceGenerator
 from geometry_msgs.msg import PointStamped, Vector3Stamped
-from harness import wait_until
+from harness import TopicProbe, wait_until
 import pytest
 from rcl_interfaces.msg import Parameter as ParameterMsg
 from rcl_interfaces.msg import ParameterType, ParameterValue
@@ -370,4 +370,41 @@ def test_utterances_wait_until_every_expected_listener_is_matched(probe, start_n
                       == len(first.utterance_stamped.snapshot()) >= 19, REPLY_S)
     assert [m.data for m in first.utterance.snapshot()] == [m.data for m in second.snapshot()]
     assert also.wait_count(len(second.snapshot()), REPLY_S)
+    assert trainer.stop(signal.SIGINT) == 0
+
+
+def test_the_trainer_listens_to_the_steps_only_once_the_named_readers_are_matched(
+        probe, start_node):
+    """
+    A viewer's reader makes a count, not a learner: the trainer waits for its readers by name.
+
+    It subscribes to the steps (and so lets the env take its first) only once the learner and
+    the saliency node are matched. Before, a Foxglove client watching the feedback counted as
+    the learner, and tamer_node, still being discovered, missed the first 224 judgements of a
+    run; and in a short run the first words reached the saliency node 66 steps late.
+    """
+    viewer = TrainerListener(probe)  # the probe: a reader of everything, not the learner
+    positions = probe.publisher(PointStamped, topics.AGENT_POSITION, qos.STEP_DATA)
+    trainer = start_node('feedback_node', {
+        'utterance_interval': 0.0, 'wait_feedback_subscribers': 1,
+        'wait_utterance_subscribers': 1, 'wait_feedback_nodes': 'the_learner',
+        'wait_utterance_nodes': 'the_learner', 'wait_utterance_stamped_nodes': 'the_grounder'})
+    assert wait_until(lambda: probe.node.count_publishers(topics.FEEDBACK_STAMPED) >= 1,
+                      STARTUP_S)
+    assert not probe.wait_for_subscribers(positions, timeout=2.0)  # no learner: not listening
+    with TopicProbe('the_learner') as learner_probe:
+        learner = TrainerListener(learner_probe)
+        assert not probe.wait_for_subscribers(positions, timeout=2.0)  # nor without grounder
+        with TopicProbe('the_grounder') as grounder_probe:
+            grounder = TrainerListener(grounder_probe)
+            assert probe.wait_for_subscribers(positions, timeout=STARTUP_S)
+            publish_positions(positions, range(0, 20))
+            assert learner.feedback_stamped.wait_count(19, REPLY_S), trainer.log_text()[-2000:]
+            assert grounder.utterance_stamped.wait_count(1, REPLY_S)
+            assert wait_until(lambda: [m.data for m in learner.utterance.snapshot()]
+                              == [m.data for m in viewer.utterance.snapshot()]
+                              != [], REPLY_S)  # the first words too, to both
+            first = min(stamp_to_ns(m.header.stamp) for m in learner.feedback_stamped.snapshot())
+            assert first == min(stamp_to_ns(m.header.stamp)
+                                for m in viewer.feedback_stamped.snapshot())
     assert trainer.stop(signal.SIGINT) == 0

@@ -10,8 +10,8 @@ from attention_bringup.gallery import cdr_header_stamp_ns, GalleryCollector
 from attention_bringup.params import (
     dump_params, load_params_file, merge_params, node_params, ParamsFileError, parse_params)
 from attention_bringup.plan import (
-    build_plan, Continuation, DEFAULT_STEPS, LATE_FEEDBACK_LEARNER, LaunchOptions, parse_options,
-    PRESS_TIMES_CREDIT, REALTIME_RATE_HZ, TEACHING_GREEDY_MARGIN)
+    build_plan, Continuation, DEFAULT_STEPS, FEEDBACK_WAITS, LATE_FEEDBACK_LEARNER,
+    LaunchOptions, parse_options, PRESS_TIMES_CREDIT, REALTIME_RATE_HZ, TEACHING_GREEDY_MARGIN)
 from attention_bringup.progress import (
     ALIVE_STEPS, format_bar, parse_value, ProgressTracker, RECENT_ROWS, RECENT_STAMPS)
 from attention_bringup.report import ProgressWriter, read_rows_for_plot
@@ -205,7 +205,8 @@ def test_plan_without_options_changes_only_budget_run_dir_and_trainer(tmp_path):
                                            'wait_status_subscribers': 2},
                               'feedback_node': {'trainer': 'teacher',
                                                 'wait_feedback_subscribers': 2,
-                                                'wait_utterance_subscribers': 2},
+                                                'wait_utterance_subscribers': 2,
+                                                **FEEDBACK_WAITS},
                               'tamer_node': {'run_dir': str(plan.run_dir),
                                              'greedy_margin': TEACHING_GREEDY_MARGIN}}
 
@@ -634,6 +635,12 @@ def test_a_person_s_session_is_recorded_unless_asked_not_to(tmp_path, synthetic,
         ['saliency_node', 'tamer_node'] + ['session_recorder'] * records)
     assert feedback['wait_feedback_subscribers'] == 2 + records
     assert feedback['wait_utterance_subscribers'] == 2 + records
+    assert feedback['wait_feedback_nodes'].split(',') == (
+        ['tamer_node'] + ['session_recorder'] * records)
+    assert feedback['wait_utterance_nodes'].split(',') == (
+        ['saliency_node', 'tamer_node'] + ['session_recorder'] * records)
+    assert feedback['wait_utterance_stamped_nodes'].split(',') == (
+        ['saliency_node'] + ['session_recorder'] * records)
     # The learners' outputs (actions, receipts, credit, metrics, saliency) wait for it too.
     for node in ('saliency_node', 'tamer_node'):
         expected = 'session_recorder' if records else ''

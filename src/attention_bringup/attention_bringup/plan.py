@@ -38,6 +38,11 @@ FOXGLOVE = 'graph_viewer'
 """The Foxglove bridge's executable and node name (package graph_viewer)."""
 RECORDER = 'session_recorder'
 """The bag recorder's executable and node name (package session_bag)."""
+FEEDBACK_WAITS = {'wait_feedback_nodes': 'tamer_node',
+                  'wait_utterance_nodes': 'saliency_node,tamer_node',
+                  'wait_utterance_stamped_nodes': 'saliency_node'}
+"""What feedback_node holds its judgements and words for, by name (the recorder's added when
+it records): the learner, and the saliency node that grounds the words."""
 BAG_DIR = 'bag'
 """The session's rosbag2 bag in the run folder (a resumed session's: bag.session2, ...)."""
 
@@ -398,6 +403,8 @@ def launcher_overrides(options: LaunchOptions, seed: int, run_dir: Path,
     overrides['feedback_node']['trainer'] = options.trainer
     overrides['feedback_node']['wait_feedback_subscribers'] = 2  # the learner and the monitor
     overrides['feedback_node']['wait_utterance_subscribers'] = 2  # saliency_node, tamer_node
+    # By name too: a viewer (Foxglove, the console) makes a count but learns nothing.
+    overrides['feedback_node'].update(FEEDBACK_WAITS)
     if options.trainer == 'teacher' and not options.thesis_learner:
         overrides['tamer_node']['greedy_margin'] = TEACHING_GREEDY_MARGIN
     if options.human_like:
@@ -425,6 +432,8 @@ def launcher_overrides(options: LaunchOptions, seed: int, run_dir: Path,
             int(env.get('wait_position_subscribers', 1)) + 1)
         overrides['feedback_node']['wait_feedback_subscribers'] += 1
         overrides['feedback_node']['wait_utterance_subscribers'] += 1
+        for key, names in FEEDBACK_WAITS.items():
+            overrides['feedback_node'][key] = f'{names},{RECORDER}'
         for node in ('saliency_node', 'tamer_node'):  # their outputs wait for it to match
             overrides[node]['wait_for_recorder'] = RECORDER
     if options.trainer == 'teacher':  # it judges from env_status: the env waits for it too

@@ -23,6 +23,11 @@ RECORDER_WAIT_S = 10.0
 """The nodes' default longest start-up wait for the recorder (wall seconds)."""
 
 
+def node_names(text: str) -> List[str]:
+    """Return the node names of a comma-separated parameter ('a, b' -> ['a', 'b']; '' -> [])."""
+    return [name.strip() for name in text.split(',') if name.strip()]
+
+
 def nodes_unmatched(node, publisher, names: Iterable[str]) -> List[str]:
     """
     Return those of the nodes ``names`` not yet matched with ``publisher`` ([]: all are).

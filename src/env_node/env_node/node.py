@@ -24,7 +24,7 @@ from attention_common.joy_actions import ACTION_MEANINGS, joy_to_action, JoyActi
 from attention_common.node_main import Closing, run_node, StartupError
 from attention_common.parameters import declare_dataclass
 from attention_common.preview import Preview
-from attention_common.recorder_gate import nodes_unmatched
+from attention_common.recorder_gate import node_names, nodes_unmatched
 from attention_common.stamps import ns_to_stamp, stamp_to_ns
 from attention_tasks.task import load_task, Step, UnknownTask
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
@@ -71,8 +71,7 @@ class EnvNode(Closing, Node):
         self._wait_subscribers = ((self.OBS, config.wait_observation_subscribers),
                                   (self.POSITION, config.wait_position_subscribers),
                                   (self.STATUS, config.wait_status_subscribers))
-        self._wait_observation_nodes = [
-            name.strip() for name in config.wait_observation_nodes.split(',') if name.strip()]
+        self._wait_observation_nodes = node_names(config.wait_observation_nodes)
         self.get_logger().info(f'starting {task.env_id} (task {task.name}), '
                                f'{world.warmup_steps} warm-up steps')
         try:

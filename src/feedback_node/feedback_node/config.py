@@ -48,6 +48,17 @@ class FeedbackConfig(TrainerConfig):
     each have this many matched subscribers besides this node (0: not held; attention_train
     sets 2: the saliency node and the learner, the saliency node and the launcher; 3 when it
     records a bag), so the first words, said at the first step, reach every listener."""
+    wait_feedback_nodes: str = ''
+    """Comma-separated names of nodes that must be matched on the feedback topic in use before
+    this node listens to the steps (so the env waits) and held judgements go out, besides the
+    count above (attention_train: tamer_node, and the recorder when it records). A count cannot
+    tell the learner from a viewer: a Foxglove client watching the feedback made it while
+    tamer_node was still being discovered, and the learner missed the first 224 judgements.
+    '' = the count only."""
+    wait_utterance_nodes: str = ''
+    """Likewise for utterances, on ``utterance`` (attention_train: saliency_node, tamer_node)."""
+    wait_utterance_stamped_nodes: str = ''
+    """Likewise on ``utterance_stamped`` (attention_train: saliency_node)."""
     summary_period: float = 30.0
     """Wall seconds between the log lines of counts (when they changed)."""
 

@@ -21,10 +21,12 @@ the synthetic trainer got: the launcher ends a run only once it judged the last 
 
 
 import collections
+import time
 
 from attention_common import qos, topics
 from attention_common.node_main import run_node, StartupError
 from attention_common.parameters import declare_dataclass
+from attention_common.recorder_gate import node_names, nodes_unmatched
 from attention_common.stamps import NS_PER_S, ns_to_stamp, stamp_to_ns
 from attention_tasks.montezuma.sentences import position_problem
 from attention_tasks.task import DEFAULT_TASK
@@ -43,6 +45,8 @@ HARDWARE_ID = 'synthetic_trainer'
 HELD_FEEDBACK = 100_000
 """Judgements held while nobody subscribes to the feedback yet (start-up), at most."""
 HELD_CHECK_S = 0.05
+LISTEN_WAIT_S = 30.0
+"""Longest wait at start for the nodes named in ``wait_*_nodes``; then listen anyway, warned."""
 TRAINER_STATUS_PERIOD_S = 0.1
 """How often ``trainer_status`` is published when it changed (steady seconds)."""
 
@@ -65,6 +69,7 @@ class FeedbackNode(Node):
         self._press_times = config.press_times
         self._wait_subscribers = config.wait_feedback_subscribers
         self._wait_listeners = config.wait_utterance_subscribers
+        self._wait_names = {}  # publisher -> the nodes it waits for, until all are matched
         self._now_ns = None  # the newest step stamp heard: this node's "now"
         self._restarts_logged = 0
         self._counts = {'bad_positions': 0, 'bad_status': 0, 'heard_utterances': 0,
@@ -81,14 +86,18 @@ class FeedbackNode(Node):
         self._utterance_pub = self.create_publisher(String, topics.UTTERANCE, qos.HUMAN)
         self._trainer_status_pub = self.create_publisher(
             DiagnosticArray, topics.TRAINER_STATUS, qos.LATCHED)
+        for publishers, names in (
+                ((self._feedback_stamped_pub, self._feedback_pub, self._feedback_pressed_pub),
+                 config.wait_feedback_nodes),
+                ((self._utterance_pub,), config.wait_utterance_nodes),
+                ((self._utterance_stamped_pub,), config.wait_utterance_stamped_nodes)):
+            for publisher in publishers:
+                self._wait_names[publisher] = node_names(names)
         self._handled_ns = -1  # the newest step the synthetic trainer has judged from
         self._given = {'given_feedback': 0, 'given_utterances': 0}  # published to the graph
         self._last_trainer_status = None
-        self.create_subscription(PointStamped, topics.AGENT_POSITION, self._on_position,
-                                 qos.STEP_DATA)
-        if self._kind == 'teacher':
-            self.create_subscription(DiagnosticArray, topics.ENV_STATUS, self._on_status,
-                                     qos.STEP_DATA)
+        self._listening = False  # to the steps: only once the named readers are matched
+        self._listen_by = time.monotonic() + LISTEN_WAIT_S
         self.create_subscription(String, topics.UTTERANCE, self._on_heard_utterance, qos.HUMAN)
         self.create_subscription(Float32, topics.FEEDBACK,
                                  lambda msg: self._on_heard_feedback(msg.data), qos.HUMAN)
@@ -99,6 +108,7 @@ class FeedbackNode(Node):
         self.create_timer(config.summary_period, self._log_summary, clock=steady)
         self._unsent = collections.deque(maxlen=HELD_FEEDBACK)  # until the learner is matched
         self._unsaid = collections.deque(maxlen=HELD_FEEDBACK)  # utterances, likewise
+        self._listen()
         self.create_timer(HELD_CHECK_S, self._send_held, clock=steady)
         self.create_timer(TRAINER_STATUS_PERIOD_S, self._publish_trainer_status, clock=steady)
         self._last_summary = None
@@ -180,15 +190,20 @@ class FeedbackNode(Node):
 
         Feedback once ``wait_feedback_subscribers`` readers are matched, utterances (stamped
         and plain, together) once each topic has ``wait_utterance_subscribers`` (this node's
-        own reader not counted).
+        own reader not counted); and each once the nodes it waits for by name
+        (``wait_feedback_nodes``, ...) are among them.
 
         The topics are volatile: a message published before a reader matched never reaches it
         (a 300-step run can end before discovery is done: once the learner, once the launcher's
         monitor heard none of 300), so judgements wait here instead.
         """
+        if not self._listening:
+            self._listen()
         listeners = min(self._readers(self._utterance_pub),
                         self._readers(self._utterance_stamped_pub))
-        if self._unsaid and listeners >= self._wait_listeners:
+        if (self._unsaid and listeners >= self._wait_listeners
+                and self._named_matched(self._utterance_pub)
+                and self._named_matched(self._utterance_stamped_pub)):
             while self._unsaid:
                 stamped_utterance, plain = self._unsaid.popleft()
                 self._utterance_stamped_pub.publish(stamped_utterance)
@@ -196,9 +211,10 @@ class FeedbackNode(Node):
                 self._given['given_utterances'] += 1
         stamped = not (self._kind == 'teacher' and self._config.delayed)
         pressed = not stamped and self._press_times
-        publisher = (self._feedback_stamped_pub if stamped else
-                     self._feedback_pressed_pub if pressed else self._feedback_pub)
-        if publisher.get_subscription_count() < self._wait_subscribers:
+        publisher = self._feedback_publisher()
+        if not self._unsent or publisher.get_subscription_count() < self._wait_subscribers:
+            return
+        if not self._named_matched(publisher):
             return
         while self._unsent:
             stamp_ns, h, y, z, pressed_ns = self._unsent.popleft()
@@ -211,6 +227,45 @@ class FeedbackNode(Node):
             if not (stamped or pressed) or self._plain_copies:
                 self._feedback_pub.publish(Float32(data=float(h)))
             self._given['given_feedback'] += 1
+
+    def _listen(self) -> None:
+        """
+        Subscribe to the steps once the nodes named for the judgements and words are matched.
+
+        The env takes its first step only once this node listens (``wait_position_subscribers``,
+        ``wait_status_subscribers``), so what the trainer says at the first steps reaches the
+        learner and the saliency node: in a short lockstep run on a busy machine the first words
+        once reached the saliency node 66 steps late, and once not within 120 steps.
+        """
+        unmatched = [publisher.topic_name for publisher in (
+            self._feedback_publisher(), self._utterance_pub, self._utterance_stamped_pub)
+            if not self._named_matched(publisher)]
+        if unmatched and time.monotonic() < self._listen_by:
+            return
+        if unmatched:
+            self.get_logger().warning(
+                f'listening to the steps although the nodes named for {", ".join(unmatched)} '
+                f'are not matched after {LISTEN_WAIT_S:g} s')
+        self._listening = True
+        self.create_subscription(PointStamped, topics.AGENT_POSITION, self._on_position,
+                                 qos.STEP_DATA)
+        if self._kind == 'teacher':
+            self.create_subscription(DiagnosticArray, topics.ENV_STATUS, self._on_status,
+                                     qos.STEP_DATA)
+
+    def _feedback_publisher(self):
+        """Return the publisher judgements go out on: stamped, pressed, or plain (late)."""
+        if not (self._kind == 'teacher' and self._config.delayed):
+            return self._feedback_stamped_pub
+        return self._feedback_pressed_pub if self._press_times else self._feedback_pub
+
+    def _named_matched(self, publisher) -> bool:
+        """Tell whether the nodes ``publisher`` waits for by name are matched (then remembered)."""
+        if self._wait_names.get(publisher):
+            if nodes_unmatched(self, publisher, self._wait_names[publisher]):
+                return False
+            self._wait_names[publisher] = ()  # matched once: the graph's learners stay
+        return True
 
     def _publish_trainer_status(self) -> None:
         """
