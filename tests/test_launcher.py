@@ -327,7 +327,9 @@ def test_doorkey_trains_through_the_real_graph(tmp_path):
 @pytest.mark.topics
 def test_fetch_runs_on_every_node_by_name_and_says_each_mission(tmp_path):
     """attention_train --task fetch: a task added as one sub-package, no node edited."""
-    run_dir, steps = tmp_path / 'run', 120
+    # 300 steps: a reader matches a writer on its own side after the writer did, and a busy
+    # machine's first words once reached the saliency node after a 120-step run had ended.
+    run_dir, steps = tmp_path / 'run', 300
     result = subprocess.run(
         [LAUNCHER, '--task', 'fetch', '--steps', str(steps), '--seed', '4', '--run-dir',
          str(run_dir), '--quiet'], capture_output=True, text=True, timeout=240)

@@ -93,6 +93,8 @@ class FeedbackNode(Node):
                 ((self._utterance_stamped_pub,), config.wait_utterance_stamped_nodes)):
             for publisher in publishers:
                 self._wait_names[publisher] = node_names(names)
+        self._named = any(self._wait_names.values())
+        """Readers are named: listen to the steps only once they and the counts are matched."""
         self._handled_ns = -1  # the newest step the synthetic trainer has judged from
         self._given = {'given_feedback': 0, 'given_utterances': 0}  # published to the graph
         self._last_trainer_status = None
@@ -233,25 +235,44 @@ class FeedbackNode(Node):
         Subscribe to the steps once the nodes named for the judgements and words are matched.
 
         The env takes its first step only once this node listens (``wait_position_subscribers``,
-        ``wait_status_subscribers``), so what the trainer says at the first steps reaches the
-        learner and the saliency node: in a short lockstep run on a busy machine the first words
-        once reached the saliency node 66 steps late, and once not within 120 steps.
+        ``wait_status_subscribers``), so what the trainer says at the first steps goes to the
+        learner and the saliency node, not to a viewer in their place.
         """
-        unmatched = [publisher.topic_name for publisher in (
-            self._feedback_publisher(), self._utterance_pub, self._utterance_stamped_pub)
-            if not self._named_matched(publisher)]
-        if unmatched and time.monotonic() < self._listen_by:
+        waiting = self._waiting_for()
+        if waiting and time.monotonic() < self._listen_by:
             return
-        if unmatched:
+        if waiting:
             self.get_logger().warning(
-                f'listening to the steps although the nodes named for {", ".join(unmatched)} '
-                f'are not matched after {LISTEN_WAIT_S:g} s')
+                f'listening to the steps after {LISTEN_WAIT_S:g} s although {waiting}')
         self._listening = True
         self.create_subscription(PointStamped, topics.AGENT_POSITION, self._on_position,
                                  qos.STEP_DATA)
         if self._kind == 'teacher':
             self.create_subscription(DiagnosticArray, topics.ENV_STATUS, self._on_status,
                                      qos.STEP_DATA)
+
+    def _waiting_for(self) -> str:
+        """
+        Say what the trainer waits for before it listens to the steps ('' when nothing).
+
+        Nothing when no reader is named (``ros2 run`` alone: it listens at once and holds what
+        it says until the counts are matched, as ever). With names, the counts too: words held
+        for a late reader are held for all.
+        """
+        if not self._named:
+            return ''
+        publishers = (self._feedback_publisher(), self._utterance_pub,
+                      self._utterance_stamped_pub)
+        unmatched = [publisher.topic_name for publisher in publishers
+                     if not self._named_matched(publisher)]
+        if unmatched:
+            return f'the nodes named for {", ".join(unmatched)} are not matched'
+        if publishers[0].get_subscription_count() < self._wait_subscribers:
+            return f'{publishers[0].topic_name} has fewer than {self._wait_subscribers} readers'
+        if min(self._readers(self._utterance_pub),
+               self._readers(self._utterance_stamped_pub)) < self._wait_listeners:
+            return f'the utterance topics have fewer than {self._wait_listeners} readers'
+        return ''
 
     def _feedback_publisher(self):
         """Return the publisher judgements go out on: stamped, pressed, or plain (late)."""
