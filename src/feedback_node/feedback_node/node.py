@@ -211,9 +211,9 @@ class FeedbackNode(Node):
                 self._utterance_stamped_pub.publish(stamped_utterance)
                 self._utterance_pub.publish(plain)
                 self._given['given_utterances'] += 1
-        stamped = not (self._kind == 'teacher' and self._config.delayed)
-        pressed = not stamped and self._press_times
         publisher = self._feedback_publisher()
+        stamped = publisher is self._feedback_stamped_pub
+        pressed = publisher is self._feedback_pressed_pub
         if not self._unsent or publisher.get_subscription_count() < self._wait_subscribers:
             return
         if not self._named_matched(publisher):

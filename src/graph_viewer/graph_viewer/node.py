@@ -90,7 +90,8 @@ class Forward:
         """The source's thinned copy of the topic (attention_common.preview), if it makes one."""
         self.reading: Optional[str] = None
         """The topic the reader reads: ``name`` or its preview."""
-        self.checked_at = -SOURCE_CHECK_S
+        self.checked_at = 0.0
+        """When the source was last looked at (monotonic s; only while ``reading`` is set)."""
 
 
 class GraphViewerNode(Closing, Node):

@@ -214,12 +214,15 @@ class SaliencyNode(Node):
 
     def _publish_mask(self, mask, header) -> None:
         """Render the mask only for a reader (while the gate holds, the recorder is one)."""
-        msg = None
+        def image() -> Image:
+            return self._image(mask * 255, 'mono8', header)
+
         if not self._gate.is_open or self._mask_pub.get_subscription_count():
-            msg = self._image(mask * 255, 'mono8', header)
+            msg = image()
             self._gate.publish(self._mask_pub, msg)
-        self._mask_preview.publish(
-            msg if msg is not None else lambda: self._image(mask * 255, 'mono8', header))
+            self._mask_preview.publish(msg)
+        else:
+            self._mask_preview.publish(image)  # made only if a viewer takes it
 
     @staticmethod
     def _image(array, encoding, header) -> Image:
