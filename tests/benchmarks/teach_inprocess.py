@@ -14,12 +14,14 @@ share on the judged step itself; and the same of what the learner holds at the e
 (``learned_purity``: after credit by prediction or decisions). ``furthest_stage`` is the furthest
 stage of the expert's route the agent was in. ``--knob`` changes a human-like knob of the
 teacher (``--knob feedback_delay_max=0 --knob feedback_delay_min=0``: on time and stamped).
+``--marked P`` hands a share P of the late verdicts over stamped with the step they judge, as a
+person who pauses to judge in the trainer console (feedback_node's ``feedback_marked``).
 
 Used to find what stops Deep TAMER from learning the route (``docs/teaching.md``, the
 ablation); the targets themselves are measured through the graph (``attention_teaching``).
 
 Run: ``.venv/bin/python tests/benchmarks/teach_inprocess.py --seeds 100 101 --steps 10000
-[--human-like] [--set learning_rate=1e-3 ...] [--out results.json]``.
+[--human-like [--marked 0.5]] [--set learning_rate=1e-3 ...] [--out results.json]``.
 """
 
 import argparse
@@ -29,6 +31,8 @@ from pathlib import Path
 import sys
 import tempfile
 import time
+
+import numpy as np
 
 
 def parse_value(text: str):
@@ -58,7 +62,7 @@ def give(agent, judgements, human_like: bool, press_times: bool = False) -> None
 
 def run_trial(seed: int, steps: int, human_like: bool, overrides: dict, pace: float,
               workdir: Path, table: str = '', knobs: dict = None,
-              stamped_late: bool = False) -> dict:
+              stamped_late: bool = False, marked: float = 0.0) -> dict:
     from attention_common.joy_actions import NUM_ACTIONS
     from attention_tasks.montezuma.action_effects import EffectTable, STRICT
     from attention_tasks.montezuma.env import EnvConfig, MontezumaEnv
@@ -88,6 +92,7 @@ def run_trial(seed: int, steps: int, human_like: bool, overrides: dict, pace: fl
     agent.start()
     env = MontezumaEnv(EnvConfig(seed=seed))
     stamped = not late  # --stamped-late: late feedback that carries its step's stamp
+    marking = np.random.default_rng(seed + 1)  # --marked: which late verdicts carry it
 
     def see(step):
         s = step.state
@@ -101,7 +106,7 @@ def run_trial(seed: int, steps: int, human_like: bool, overrides: dict, pace: fl
     acted = {}       # stamp -> the agent's action
     recent = collections.deque(maxlen=120)  # the newest stamps, enough for any credit window
     purity = []      # per late feedback: (credit on steps with the judged action, on the step)
-    judged_plain = []  # per late feedback, in the order sent (its seq - 1): (stamp, action)
+    judged_plain = []  # per feedback sent, in order (its seq - 1): (stamp, action judged)
     credit_window = (agent.config.window_min_s, agent.config.window_max_s)
 
     def credit_check(judgement, now_ns) -> None:
@@ -132,8 +137,9 @@ def run_trial(seed: int, steps: int, human_like: bool, overrides: dict, pace: fl
             step = env.reset()
             feedback += see(step)
         for judgement in feedback:
-            if stamped:
+            if stamped or (marked and marking.random() < marked):
                 agent.on_feedback(judgement.h, 'stamped', judgement.stamp_ns)
+                judged_plain.append((judgement.stamp_ns, judgement.action))  # (its seq)
             else:
                 agent.on_feedback(judgement.h, 'plain')
                 credit_check(judgement, newest)
@@ -221,6 +227,9 @@ def main(argv=None) -> int:
     parser.add_argument('--stamped-late', action='store_true',
                         help='late feedback goes in stamped with the step it judges (step '
                              'credit): attribution perfect, the delay kept (a diagnostic)')
+    parser.add_argument('--marked', type=float, default=0.0, metavar='P',
+                        help='with --human-like: a share P of the verdicts stamped with the '
+                             'step they judge (a person judging a paused frame), the rest plain')
     parser.add_argument('--what', default='', help='a line describing the variant (--out)')
     parser.add_argument('--out', type=Path, default=None)
     args = parser.parse_args(argv)
@@ -235,7 +244,7 @@ def main(argv=None) -> int:
             result = run_trial(seed, args.steps, args.human_like, overrides, args.pace,
                                Path(workdir), args.table,
                                {k.split('=', 1)[0]: float(k.split('=', 1)[1]) for k in args.knob},
-                               args.stamped_late)
+                               args.stamped_late, args.marked)
             results.append(result)
             print(json.dumps({k: v for k, v in result.items() if k != 'curve'}), flush=True)
             print('  agreement per 500 steps:',
