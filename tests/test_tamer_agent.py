@@ -83,6 +83,20 @@ def test_stamped_feedback_labels_exactly_the_judged_step(agents):
     assert agent.metrics()['feedback/count'] == 2
 
 
+def test_a_stamped_verdict_names_its_step_even_where_plain_ones_get_the_window(agents):
+    # A person's press on a paused frame, among late plain presses: credit 'window' is how
+    # plain feedback is attributed; a stamp says which step was judged, so it gets that step.
+    agent = agents(credit='window')
+    actions = play(agent, 90)
+    agent.on_feedback(-1.0, 'stamped', stamp(89))  # the newest step: outside any window
+    agent.on_feedback(1.0, 'plain')
+    assert processed(agent, 2)
+    stamped = [s for s in agent.buffer.samples() if s.h == -1.0]
+    assert [(s.stamp, s.action, s.weight) for s in stamped] == [
+        (stamp(89), actions[stamp(89)], 1.0)]
+    assert len([s for s in agent.buffer.samples() if s.h == 1.0]) > 50  # the window's
+
+
 def test_feedback_for_an_unknown_step_is_logged_and_counted(agents, tmp_path):
     agent = agents()
     play(agent, 3)

@@ -135,6 +135,23 @@ def test_the_human_like_setting_gives_a_third_late_and_some_wrong():
     assert 0.05 < len(wrong) / len(released) < 0.15
 
 
+def test_a_marking_teacher_marks_its_share_and_otherwise_gives_the_same_verdicts():
+    # feedback_marked: a person who pauses to judge; about the share asked is marked, none at
+    # 0 (where it draws nothing, so the named setting's runs stay as they were).
+    knobs = vars(HUMAN_LIKE_SETTING)
+    runs = {}
+    for marked in (0.0, 0.5):
+        teacher = room_one_teacher(TeacherConfig(utterance_interval=-1.0, seed=3,
+                                                 **dict(knobs, feedback_marked=marked)))
+        runs[marked] = walk(teacher, 3000)
+    plain, marking = runs[0.0], runs[0.5]
+    assert not any(f.marked for f, _ in plain)
+    share = sum(f.marked for f, _ in marking) / len(marking)
+    assert 0.4 < share < 0.6, share
+    with pytest.raises(ValueError, match='feedback_marked'):
+        TeacherConfig(feedback_marked=1.5)
+
+
 def test_delayed_feedback_is_released_between_0_3_and_1_5_s_after_it_was_seen():
     teacher = room_one_teacher(TeacherConfig(utterance_interval=-1.0, feedback_delay_min=0.3,
                                              feedback_delay_max=1.5))

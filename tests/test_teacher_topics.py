@@ -155,3 +155,23 @@ def test_late_feedback_with_press_times_carries_the_moment_it_was_given(probe, s
                    for _, (action, expert, wrong) in judged), (moment, msg.vector)
     assert teacher.wait_for_log('feedback_pressed with the moment given', 1.0)
     assert teacher.stop(signal.SIGINT) == 0
+
+
+def test_a_marking_teacher_gives_some_late_verdicts_with_their_step(probe, start_node):
+    # feedback_marked 0.5: as a person who pauses to judge every other verdict. Those go out
+    # on feedback_stamped with the step they judge; the others plain; none twice.
+    player, teacher, stamped, plain, _ = start_graph(
+        probe, start_node, {'utterance_interval': -1.0, 'feedback_delay_min': 0.3,
+                            'feedback_delay_max': 0.6, 'feedback_marked': 0.5})
+    player.play(100)
+    assert plain.wait_count(20, REPLY_S) and stamped.wait_count(20, REPLY_S), (
+        teacher.log_text()[-3000:])
+    time.sleep(0.5)  # the last judgements in flight
+    for msg in stamped.snapshot():
+        action, expert_action, wrong = player.played[stamp_to_ns(msg.header.stamp)]
+        assert (int(msg.vector.z), int(msg.vector.y)) == (action, expert_action)
+        assert msg.vector.x == (-1.0 if wrong else 1.0)  # (no noise set: every sign right)
+    marked, given = len(stamped.snapshot()), len(stamped.snapshot()) + len(plain.snapshot())
+    assert 0.3 <= marked / given <= 0.7, (marked, given)
+    assert teacher.wait_for_log('marked 0.5', 1.0)
+    assert teacher.stop(signal.SIGINT) == 0

@@ -27,7 +27,7 @@ import pytest
 from sensor_msgs.msg import Image
 from std_msgs.msg import Float32
 from trainer_console.config import ConsoleConfig
-from trainer_console.press_time import MAX_AFTER_MS, press_moment
+from trainer_console.press_time import frame_stamp, MAX_AFTER_MS, press_moment
 from trainer_console.state import ConsoleState
 from trainer_console.web import ConsoleServer, Frames
 
@@ -103,6 +103,7 @@ def test_a_person_teaches_from_the_browser(probe, start_node, tmp_path):
                 await page.evaluate('document.body.innerText'))
             shown = await page.evaluate('window.framesShown.F')
             assert await page.wait_for(f'window.framesShown.F >= {shown + 5}')  # it plays
+            assert await page.evaluate("document.getElementById('paused_hint').hidden")
             # Seven judgements from the keyboard: five +, then ArrowUp and -.
             for key in ('+',) * 5 + ('ArrowUp', '-'):
                 await page.press(key)
@@ -148,9 +149,16 @@ def test_a_person_teaches_from_the_browser(probe, start_node, tmp_path):
                 await page.evaluate('document.body.innerText'))
             assert await page.wait_for("document.getElementById('h_panel').dataset.exact"
                                        " === '1'")
-            return await page.evaluate(PAGE_VIEW), plus['seq']
+            view = await page.evaluate(PAGE_VIEW)
+            assert await page.wait_for("!document.getElementById('paused_hint').hidden")
+            # Paused, a press judges the step on screen: stamped with it, credited to it alone
+            # (plain, the learner's window would fall 0.2 s and more before it, never on it).
+            await page.press('-')
+            assert await page.wait_for(
+                "document.getElementById('confirmed').textContent === '9'")
+            return view, plus['seq'], await page.evaluate('window.frameStamp')
 
-    shown, seq = asyncio.run(session())
+    shown, seq, paused_frame = asyncio.run(session())
     # The H panel: one bar per action of the task, the action the learner took on the frame
     # on screen highlighted, and the H it published for that very step.
     names = list(load_task('montezuma').action_names)
@@ -181,7 +189,13 @@ def test_a_person_teaches_from_the_browser(probe, start_node, tmp_path):
             for line in feedback] == [
         (1.0, 'pressed', 1, 'ok'), (1.0, 'pressed', 2, 'ok'), (1.0, 'pressed', 3, 'ok'),
         (1.0, 'pressed', 4, 'ok'), (1.0, 'pressed', 5, 'ok'), (1.0, 'pressed', 6, 'ok'),
-        (-1.0, 'pressed', 7, 'ok'), (-0.5, 'plain', 1, 'ok'), (1.0, 'pressed', 8, 'ok')]
+        (-1.0, 'pressed', 7, 'ok'), (-0.5, 'plain', 1, 'ok'), (1.0, 'pressed', 8, 'ok'),
+        (-1.0, 'stamped', 1, 'ok')]
+    on_frame = feedback[-1]
+    assert on_frame['stamp_ns'] == int(paused_frame), (on_frame, paused_frame)
+    assert credits.wait_for(lambda m: credit_of(m, on_frame['seq']), 10.0)
+    assert credit_of(credits.snapshot(), on_frame['seq']) == (
+        {int(paused_frame): 1.0}, -1.0, 'step')
     # Each of ours timed on the env's clock from the frame on screen: near the newest
     # observation the learner had when it arrived (at most a step after it).
     for line in feedback[:7]:
@@ -303,12 +317,13 @@ def test_the_console_shows_another_tasks_milestones():
 def test_the_page_shows_the_pause_of_an_env_that_paused_itself():
     state = ConsoleState()
     state.on_status({'agent_step': 0}, now=0.0, message='paused')  # pause_each_episode
-    assert state.snapshot()['paused']
+    assert state.snapshot()['paused'] and state.snapshot()['judges_frame']  # the page's hint
     state.on_status({'agent_step': 1}, now=0.0, message='running')  # resumed from elsewhere
-    assert not state.snapshot()['paused']
+    assert not state.snapshot()['paused'] and not state.snapshot()['judges_frame']
     state.paused = True  # the console's own pause: a step still in flight does not undo it
     state.on_status({'agent_step': 2}, now=0.0, message='running')
     assert state.snapshot()['paused']
+    assert not ConsoleState(judge_paused_frame=False, paused=True).snapshot()['judges_frame']
 
 
 @pytest.mark.topics
@@ -316,7 +331,10 @@ def test_the_page_shows_the_pause_of_an_env_that_paused_itself():
 def test_a_key_press_carries_the_frame_on_screen_and_the_time_since_it_appeared(
         probe, start_node, tmp_path):
     """
-    The press goes out on feedback_pressed at the frame's stamp plus the wait; paused: plain.
+    A press goes out at the frame's stamp plus the wait; paused, at the frame's own stamp.
+
+    Running, on feedback_pressed; paused, on feedback_stamped (the step on screen is the step
+    judged).
 
     The frames' stamps are 1,000 s of simulation apart, so a press timed from anything but
     the frame on screen (the console's clock, the newest frame it got) would show.
@@ -324,12 +342,14 @@ def test_a_key_press_carries_the_frame_on_screen_and_the_time_since_it_appeared(
     frames = probe.publisher(Image, topics.OBSERVATION, qos.FRAMES)
     statuses = probe.publisher(DiagnosticArray, topics.ENV_STATUS, qos.STEP_DATA)
     pressed = probe.subscribe(Vector3Stamped, topics.FEEDBACK_PRESSED, qos.HUMAN)
+    on_frame = probe.subscribe(Vector3Stamped, topics.FEEDBACK_STAMPED, qos.HUMAN)
     plain = probe.subscribe(Float32, topics.FEEDBACK, qos.HUMAN)
     port = free_port()
     console = start_node('trainer_console', {'port': port})
     assert console.wait_for_log('trainer console at', STARTUP_S), console.log_text()[-2000:]
     assert probe.wait_for_subscribers(frames, timeout=STARTUP_S)
     assert probe.wait_matched(pressed, timeout=STARTUP_S) and probe.wait_matched(plain)
+    assert probe.wait_matched(on_frame, timeout=STARTUP_S)
 
     def show(k: int) -> int:
         msg = numpy_to_image(np.full((210, 160, 3), 40 * k % 255, np.uint8), 'rgb8', Image())
@@ -356,11 +376,12 @@ def test_a_key_press_carries_the_frame_on_screen_and_the_time_since_it_appeared(
                 after = await page.evaluate('performance.now()')
                 timings.append((stamp, before - shown_at, after - shown_at))
                 assert pressed.wait_count(k, 10.0), console.log_text()[-2000:]
-            say('paused')  # the env paused itself: the frame stands still, the press is plain
+            say('paused')  # the env paused itself: the frame stands still and is judged
             assert await page.wait_for("document.getElementById('pause').textContent"
                                        " === 'resume'")
+            await asyncio.sleep(0.3)
             await page.press('-')
-            assert plain.wait_count(1, 10.0), console.log_text()[-2000:]
+            assert on_frame.wait_count(1, 10.0), console.log_text()[-2000:]
             assert await page.wait_for(
                 "document.getElementById('confirmed').textContent === '0'")  # no learner
             return timings
@@ -372,9 +393,9 @@ def test_a_key_press_carries_the_frame_on_screen_and_the_time_since_it_appeared(
         assert low_ms - 1 <= waited_ms <= high_ms + 1, (waited_ms, low_ms, high_ms)
         assert msg.vector.x == 1.0
     assert stamp_to_ns(pressed.snapshot()[1].header.stamp) - timings[1][0] >= 0.55 * 10**9
-    assert [m.data for m in plain.snapshot()] == [-1.0]
-    assert len(pressed.snapshot()) == 2
-    assert 'key press sent plain on feedback: the env is paused' in console.log_text()
+    assert [(m.vector.x, stamp_to_ns(m.header.stamp)) for m in on_frame.snapshot()] == [
+        (-1.0, timings[1][0])]  # the frame on screen's own stamp, not a moment after it
+    assert plain.snapshot() == [] and len(pressed.snapshot()) == 2
     assert console.stop(signal.SIGINT) == 0
 
 
@@ -390,6 +411,11 @@ def test_a_press_is_timed_only_from_a_frame_that_is_the_present():
         assert moment is None and why.startswith('unreadable'), (frame, after)
     moment, why = press_moment('5', MAX_AFTER_MS + 1, paused=False)
     assert moment is None and 'not the present' in why
+    # Paused, the frame on screen is the step judged: its stamp alone, however long it stood.
+    assert frame_stamp('5000000000') == (5 * second, '')
+    assert frame_stamp(None) == (None, 'the page sent no frame timing')
+    for frame in ('-5', '1e9', True, 5.0):
+        assert frame_stamp(frame)[0] is None and frame_stamp(frame)[1].startswith('unreadable')
 
 
 def test_a_receipt_names_the_publisher_its_press_went_out_on():

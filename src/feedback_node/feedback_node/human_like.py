@@ -13,7 +13,7 @@ from typing import Dict, List, Tuple, TypeVar
 from attention_common.stamps import NS_PER_S
 import numpy as np
 
-F = TypeVar('F')  # a feedback NamedTuple with stamp_ns, h, seen_ns, flipped and pressed_ns
+F = TypeVar('F')  # a feedback NamedTuple: stamp_ns, h, seen_ns, flipped, pressed_ns, marked
 
 
 @dataclass
@@ -28,9 +28,13 @@ class HumanLike:
     """Longest delay; drawn uniformly between the two."""
     feedback_noise: float = 0.0
     """Probability that the sign of h is flipped (h = 0 stays 0)."""
+    feedback_marked: float = 0.0
+    """Probability that a late verdict is given with the step it judges, as a person who
+    pauses to judge that moment in the trainer console: it goes out stamped (the learner
+    credits that step), the rest plain. 0 = none (a person who never pauses)."""
 
     def __post_init__(self):
-        for name in ('feedback_probability', 'feedback_noise'):
+        for name in ('feedback_probability', 'feedback_noise', 'feedback_marked'):
             value = getattr(self, name)
             if not 0.0 <= value <= 1.0:
                 raise ValueError(f'{name} must be in [0, 1], got {value}')
@@ -56,7 +60,7 @@ class FeedbackScheduler:
     def __init__(self, knobs: HumanLike, seed: int = 0):
         self.knobs = knobs
         self._rng = np.random.default_rng(seed)
-        self.counts: Dict[str, int] = {'given': 0, 'skipped': 0, 'flipped': 0}
+        self.counts: Dict[str, int] = {'given': 0, 'skipped': 0, 'flipped': 0, 'marked': 0}
         self.clear()
 
     def clear(self) -> None:
@@ -83,6 +87,9 @@ class FeedbackScheduler:
             delay_s = self._rng.uniform(knobs.feedback_delay_min, knobs.feedback_delay_max)
         due_ns = feedback.seen_ns + int(round(delay_s * NS_PER_S))
         feedback = feedback._replace(pressed_ns=due_ns)
+        if knobs.feedback_marked > 0.0 and self._rng.random() < knobs.feedback_marked:
+            feedback = feedback._replace(marked=True)  # (no draw at 0: old runs reproduce)
+            self.counts['marked'] += 1
         heapq.heappush(self._pending, (due_ns, self._sequence, feedback))
         self._sequence += 1
 

@@ -51,6 +51,8 @@ class Judgement(NamedTuple):
     flipped: bool = False
     pressed_ns: int = 0
     """When it is given (simulation ns): ``seen_ns`` plus the human-like delay."""
+    marked: bool = False
+    """Given with the step it judges (``feedback_marked``): published stamped, not plain."""
 
 
 class TeacherOutput(NamedTuple):

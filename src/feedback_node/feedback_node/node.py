@@ -124,7 +124,8 @@ class FeedbackNode(Node):
                     if c.utterance_interval == 0 else f'every {c.utterance_interval:g} s')
         human = (f'feedback probability {c.feedback_probability:g}, '
                  f'delay {c.feedback_delay_min:g}-{c.feedback_delay_max:g} s, '
-                 f'noise {c.feedback_noise:g}')
+                 f'noise {c.feedback_noise:g}'
+                 + (f', marked {c.feedback_marked:g}' if c.feedback_marked else ''))
         if self._kind == 'teacher':
             plain = ((' (on feedback_pressed with the moment given: it comes late)'
                       if self._press_times else ' (plain feedback only: it comes late)')
@@ -171,14 +172,18 @@ class FeedbackNode(Node):
                 'starting the trainer over')
         for feedback in out.feedback:
             self._publish_feedback(feedback.stamp_ns, feedback.h, feedback.position,
-                                   feedback.distance, feedback.pressed_ns)
+                                   feedback.distance, feedback.pressed_ns, feedback.marked)
         if out.utterance is not None:
             self._publish_utterance(out.utterance)
 
     def _publish_feedback(self, stamp_ns: int, h: float, y: float, z: float,
-                          pressed_ns: int) -> None:
-        """feedback_stamped, or plain feedback (or pressed) when it comes late as a person's."""
-        self._unsent.append((stamp_ns, h, y, z, pressed_ns))
+                          pressed_ns: int, marked: bool = False) -> None:
+        """
+        feedback_stamped, or plain feedback (or pressed) when it comes late as a person's.
+
+        ``marked``: a late verdict given with the step it judges goes out stamped all the same.
+        """
+        self._unsent.append((stamp_ns, h, y, z, pressed_ns, marked))
         self._send_held()
 
     def _readers(self, publisher) -> int:
@@ -214,19 +219,20 @@ class FeedbackNode(Node):
         publisher = self._feedback_publisher()
         stamped = publisher is self._feedback_stamped_pub
         pressed = publisher is self._feedback_pressed_pub
-        if not self._unsent or publisher.get_subscription_count() < self._wait_subscribers:
-            return
-        if not self._named_matched(publisher):
+        if not self._unsent or any(
+                p.get_subscription_count() < self._wait_subscribers or not self._named_matched(p)
+                for p in self._feedback_publishers()):
             return
         while self._unsent:
-            stamp_ns, h, y, z, pressed_ns = self._unsent.popleft()
-            if stamped or pressed:  # the step judged, or the moment given
+            stamp_ns, h, y, z, pressed_ns, marked = self._unsent.popleft()
+            if stamped or pressed or marked:  # the step judged, or the moment given
                 msg_out = Vector3Stamped()
-                msg_out.header.stamp = ns_to_stamp(stamp_ns if stamped else pressed_ns)
+                msg_out.header.stamp = ns_to_stamp(pressed_ns if pressed and not marked
+                                                   else stamp_ns)
                 msg_out.vector.x, msg_out.vector.y, msg_out.vector.z = (
                     float(h), float(y), float(z))
-                publisher.publish(msg_out)
-            if not (stamped or pressed) or self._plain_copies:
+                (self._feedback_stamped_pub if marked else publisher).publish(msg_out)
+            if not (stamped or pressed or marked) or self._plain_copies:
                 self._feedback_pub.publish(Float32(data=float(h)))
             self._given['given_feedback'] += 1
 
@@ -261,14 +267,15 @@ class FeedbackNode(Node):
         """
         if not self._named:
             return ''
-        publishers = (self._feedback_publisher(), self._utterance_pub,
+        publishers = (*self._feedback_publishers(), self._utterance_pub,
                       self._utterance_stamped_pub)
         unmatched = [publisher.topic_name for publisher in publishers
                      if not self._named_matched(publisher)]
         if unmatched:
             return f'the nodes named for {", ".join(unmatched)} are not matched'
-        if publishers[0].get_subscription_count() < self._wait_subscribers:
-            return f'{publishers[0].topic_name} has fewer than {self._wait_subscribers} readers'
+        for feedback in self._feedback_publishers():
+            if feedback.get_subscription_count() < self._wait_subscribers:
+                return f'{feedback.topic_name} has fewer than {self._wait_subscribers} readers'
         if min(self._readers(self._utterance_pub),
                self._readers(self._utterance_stamped_pub)) < self._wait_listeners:
             return f'the utterance topics have fewer than {self._wait_listeners} readers'
@@ -279,6 +286,13 @@ class FeedbackNode(Node):
         if not (self._kind == 'teacher' and self._config.delayed):
             return self._feedback_stamped_pub
         return self._feedback_pressed_pub if self._press_times else self._feedback_pub
+
+    def _feedback_publishers(self) -> tuple:
+        """Return the publishers judgements go out on: a marking teacher's stamped one too."""
+        publisher = self._feedback_publisher()
+        if self._config.feedback_marked > 0.0 and publisher is not self._feedback_stamped_pub:
+            return publisher, self._feedback_stamped_pub
+        return (publisher,)
 
     def _named_matched(self, publisher) -> bool:
         """Tell whether the nodes ``publisher`` waits for by name are matched (then remembered)."""
@@ -334,7 +348,7 @@ class FeedbackNode(Node):
                                       'a new trial, starting the teacher over')
         for judgement in out.feedback:
             self._publish_feedback(judgement.stamp_ns, judgement.h, judgement.expert_action,
-                                   judgement.action, judgement.pressed_ns)
+                                   judgement.action, judgement.pressed_ns, judgement.marked)
         if out.utterance is not None:
             self._publish_utterance(out.utterance)
 

@@ -54,9 +54,11 @@ class Feedback(NamedTuple):
     seen_ns: int
     """The step whose position was judged (the next step)."""
     flipped: bool = False
+    """The noise option flipped the sign."""
     pressed_ns: int = 0
     """When it is given (simulation ns): ``seen_ns`` plus the human-like delay."""
-    """The noise option flipped the sign."""
+    marked: bool = False
+    """Given with the step it judges (``feedback_marked``): published stamped, not plain."""
 
 
 class TrainerOutput(NamedTuple):

@@ -31,7 +31,9 @@ class TamerConfig:
     alpha: float = 1e-4
     """Weight of the saliency L2 term in loss = MSE + alpha * L2; 0 is vanilla Deep TAMER."""
     credit: str = 'step'
-    """'step': feedback stamped T labels (s_T, a_T); 'window': Deep TAMER credit window."""
+    """How plain and pressed feedback is credited: 'step', to the newest step (s_T, a_T);
+    'window', Deep TAMER's credit window. Stamped feedback names the step it judges and is
+    credited to it either way (a trainer's stamp, a person's press on a paused frame)."""
     window_min_s: float = 0.2
     """Credit window: the shortest delay (simulation s) between an action and feedback on it."""
     window_max_s: float = 4.0

@@ -48,7 +48,8 @@ class FeedbackIntake:
         """
         Queue a feedback: the disk thread logs it, then hands it to the learner.
 
-        ``source`` is 'stamped' (``stamp`` = the step judged), 'plain' (stamped on arrival
+        ``source`` is 'stamped' (``stamp`` = the step judged: credited to that step whatever
+        ``credit`` says, since it names it), 'plain' (stamped on arrival
         with the newest observation stamp; a copy, logged as 'duplicate', when it pairs with
         a stamped or pressed verdict of the same h that came at most ``stamped_active_s``
         before it) or 'pressed' (as plain, but ``stamp`` is the moment the trainer gave
@@ -75,8 +76,9 @@ class FeedbackIntake:
             status = 'no_observation'
         with self._lock:
             self.seq += 1
-            event = FeedbackEvent(self.seq, h, stamp, now, status,
-                                  self.config.credit, arrived, self._steps.session)
+            credit = 'step' if source == 'stamped' else self.config.credit
+            event = FeedbackEvent(self.seq, h, stamp, now, status, credit, arrived,
+                                  self._steps.session)
             entry = entry_from_event(event, source, time.time())
             entry.update(extra or {})
             # One FIFO queue: feedback reaches the log and then the learner in arrival order.

@@ -28,7 +28,13 @@ class ConsoleConfig:
     press_times: bool = True
     """true: each key press goes on ``feedback_pressed`` with the moment it was given (the
     frame on screen plus the time since it appeared, ``press_time.py``), and the learner
-    credits it from then; plain on ``feedback`` while paused. false: always plain."""
+    credits it from then. false: plain on ``feedback``. Either way a press while the env is
+    paused follows ``judge_paused_frame``."""
+    judge_paused_frame: bool = True
+    """true: while the env is paused a key press judges the frame on screen, the step whose H
+    and action the page shows: it goes on ``feedback_stamped`` stamped with that frame, and
+    the learner credits exactly that step. false: plain on ``feedback`` (the learner's window
+    then falls on the steps 0.2 s and more before the paused frame, never on it)."""
     task: str = 'montezuma'
     """The task taught: what utterances can name (its template manifest) and its milestones
     (Room 1's critical positions, DoorKey's sub-goals)."""

@@ -6,7 +6,8 @@ Subscribes ``observation`` and ``saliency`` (shown live, as JPEG over a websocke
 learner's receipts), ``action_values`` and ``feedback_credit`` (what the learner made of the
 person: ``learner_view.py``); publishes each key press on ``feedback_pressed``
 (geometry_msgs/Vector3Stamped: h and the moment it was given, ``press_time.py``; plain
-``feedback``, std_msgs/Float32, while paused or with ``press_times`` false) and words on
+``feedback``, std_msgs/Float32, with ``press_times`` false), or while the env is paused on
+``feedback_stamped`` (Vector3Stamped: h and the frame on screen, the step judged), and words on
 ``utterance`` (std_msgs/String), the very topic ``ros2 topic pub`` uses, and sets env_node's
 ``paused``.
 The web server runs on its own thread (``web.ConsoleServer``); rclpy spins in the main one.
@@ -39,10 +40,13 @@ from sensor_msgs.msg import Image
 from std_msgs.msg import Float32, String
 from trainer_console.config import ConsoleConfig
 from trainer_console.matching import subscriber_names, wait_for_all_matched
-from trainer_console.press_time import press_moment
+from trainer_console.press_time import frame_stamp, press_moment
 from trainer_console.state import ConsoleState
 from trainer_console.web import ConsoleServer, Frames
 
+SOURCES = {topics.FEEDBACK: 'plain', topics.FEEDBACK_PRESSED: 'pressed',
+           topics.FEEDBACK_STAMPED: 'stamped', topics.UTTERANCE: 'plain'}
+"""The console's topics, and the source the learner logs a message of each under."""
 MAX_PIXELS = 1024 * 1024
 """Larger images are not shown (and never decoded)."""
 
@@ -62,17 +66,17 @@ class ConsoleNode(Closing, Node):
         self.state = ConsoleState(
             ground=lambda text: grounder.ground(text).objects,
             milestone_of=lambda values: task.milestone_of(values, DEFAULT_RADIUS),
-            milestones=task.milestones)
+            milestones=task.milestones, judge_paused_frame=self.config.judge_paused_frame)
         self.frames = Frames()
         self._encoded_at = {'frame': 0.0, 'saliency': 0.0}
         self._publish_lock = threading.Lock()  # publish and its sequence number together
-        self._published = dict.fromkeys((topics.FEEDBACK, topics.FEEDBACK_PRESSED,
-                                         topics.UTTERANCE), 0)
+        self._published = dict.fromkeys(SOURCES, 0)
         self._person_pubs = {
             topic: self.create_publisher(kind, topic, qos.HUMAN) for topic, kind in (
                 (topics.FEEDBACK, Float32), (topics.FEEDBACK_PRESSED, Vector3Stamped),
-                (topics.UTTERANCE, String))}
-        self.counts = {'timed_presses': 0, 'plain_presses': 0, 'unreadable_timings': 0}
+                (topics.FEEDBACK_STAMPED, Vector3Stamped), (topics.UTTERANCE, String))}
+        self.counts = {'timed_presses': 0, 'plain_presses': 0, 'frame_presses': 0,
+                       'unreadable_timings': 0}
         self.create_subscription(Image, topics.OBSERVATION,
                                  lambda msg: self._on_image('frame', msg), qos.FRAMES)
         self.create_subscription(Image, topics.SALIENCY,
@@ -190,9 +194,14 @@ class ConsoleNode(Closing, Node):
                                 else topics.FEEDBACK)
 
     def _give_feedback(self, h: float, command: dict) -> dict:
-        """Publish a key press: with the moment it was given when the page timed it."""
+        """Publish a key press: on the paused frame, or with the moment it was given."""
         pressed_ns, why = None, 'press_times is false'
-        if self.config.press_times:
+        if self.config.judge_paused_frame and self.state.paused:
+            frame_ns, why = frame_stamp(command.get('frame'))
+            if frame_ns is not None:  # what the person judges: the step on screen
+                self.counts['frame_presses'] += 1
+                return self._give('feedback', h, _verdict(h, frame_ns), topics.FEEDBACK_STAMPED)
+        elif self.config.press_times:
             pressed_ns, why = press_moment(command.get('frame'), command.get('after_ms'),
                                            self.state.paused)
         if pressed_ns is None:
@@ -205,10 +214,7 @@ class ConsoleNode(Closing, Node):
                 self.get_logger().info(f'key press sent plain on {topics.FEEDBACK}: {why}')
             return self._give('feedback', h, Float32(data=h), topics.FEEDBACK)
         self.counts['timed_presses'] += 1
-        msg = Vector3Stamped()
-        msg.header.stamp = ns_to_stamp(pressed_ns)
-        msg.vector.x = h
-        return self._give('feedback', h, msg, topics.FEEDBACK_PRESSED)
+        return self._give('feedback', h, _verdict(h, pressed_ns), topics.FEEDBACK_PRESSED)
 
     def _give(self, kind: str, value, msg, topic: str) -> dict:
         publisher = self._person_pubs[topic]
@@ -218,7 +224,7 @@ class ConsoleNode(Closing, Node):
                                       '(is tamer_node running?)')
             return {'ok': False, 'error': f'nobody listens to {kind} yet (is the learner '
                                           'running?): not sent'}
-        source = 'pressed' if topic == topics.FEEDBACK_PRESSED else 'plain'  # as logged
+        source = SOURCES[topic]  # as the learner logs it
         with self._publish_lock:
             sent_ns = time.time_ns()
             publisher.publish(msg)
@@ -249,6 +255,14 @@ class ConsoleNode(Closing, Node):
         server = getattr(self, 'server', None)
         if server is not None:
             server.stop()
+
+
+def _verdict(h: float, stamp_ns: int) -> Vector3Stamped:
+    """Return a key press as a Vector3Stamped: x = h, stamped with ``stamp_ns``."""
+    msg = Vector3Stamped()
+    msg.header.stamp = ns_to_stamp(stamp_ns)
+    msg.vector.x = h
+    return msg
 
 
 def _first(msg: DiagnosticArray):

@@ -67,6 +67,8 @@ class ConsoleState:
     metrics: dict = field(default_factory=dict)
     furthest: int = -1
     paused: bool = False
+    judge_paused_frame: bool = True
+    """While paused, a press judges the frame on screen (the page says so)."""
     paused_by_env: bool = False
     """The env paused itself (pause_each_episode): its next running step ends the pause here."""
     listeners: Dict[str, List[str]] = field(default_factory=dict)
@@ -177,6 +179,7 @@ class ConsoleState:
                 'lives': self.status.get('lives'), 'has_key': self.status.get('has_key'),
                 'furthest': self.furthest, 'milestones': list(self.milestones),
                 'paused': self.paused,
+                'judges_frame': self.paused and self.judge_paused_frame,
                 'listeners': dict(self.listeners),
                 'learner': {key: metrics.get(key) for key in (
                     'feedback/received', 'feedback/logged', 'feedback/count', 'train/loss',

@@ -63,6 +63,7 @@ function showState(s) {
   lastSnapshot = s;
   $('furthest').textContent = s.furthest >= 0 ? `${s.furthest} (${(s.milestones || [])[s.furthest] || ''})` : '-';
   $('pause').textContent = s.paused ? 'resume' : 'pause';
+  $('paused_hint').hidden = !s.judges_frame;
   $('log').innerHTML = s.last.slice().reverse().map((p) =>
     `<li class="${p.confirmed ? 'good' : 'pending'}">${p.kind} ${escapeHtml(String(p.value))}` +
     `${p.confirmed ? ` logged (${p.status})` : ' waiting'}</li>`).join('');
