@@ -16,7 +16,8 @@ The settings are the words study's (8 x 8, four objects, 50 steps an episode, 1.
 step); the last ``--heldout`` steps are on held-out rooms with held-out target pairs.
 
 Run: ``.venv/bin/python tests/benchmarks/teach_fetch_inprocess.py --seeds 900 901 --steps 10000
-[--mode mask|language|off] [--explore 0.1] [--human-like [--press-times]] [--stamped-late]
+[--mode mask|language|off] [--explore 0.1] [--human-like [--press-times] [--marked 0.5]]
+[--stamped-late]
 [--set NAME=VALUE ...]
 [--out results.json]``.
 """
@@ -34,7 +35,7 @@ from teach_inprocess import give, parse_value
 
 def run_trial(seed: int, steps: int, heldout: int, mode: str, explore: float, human_like: bool,
               overrides: dict, workdir: Path, stamped_late: bool = False,
-              press_times: bool = False) -> dict:
+              press_times: bool = False, marked: float = 0.0) -> dict:
     from attention_bringup.plan import human_like_window_s, PRESS_TIMES_CREDIT
     from attention_tasks.fetch.env import FetchEnv, FetchEnvConfig
     from attention_tasks.gridworld import STEP_S
@@ -50,6 +51,8 @@ def run_trial(seed: int, steps: int, heldout: int, mode: str, explore: float, hu
 
     share_the_cpu()
     knobs = vars(HUMAN_LIKE_SETTING) if human_like or stamped_late else {}
+    if marked:  # a person who pauses to judge a share of the verdicts
+        knobs = dict(knobs, feedback_marked=marked)
     plain = human_like and not stamped_late  # plain verdicts: the credit window attributes them
     teacher = TaskTeacher(load_knowledge('fetch'), NUM_ACTIONS,
                           TeacherConfig(utterance_interval=-1.0, seed=seed, **knobs))
@@ -130,6 +133,10 @@ def main(argv=None) -> int:
     parser.add_argument('--press-times', action='store_true',
                         help='with --human-like: each late verdict carries the moment it was '
                              "given (source pressed), as the console's key presses do")
+    parser.add_argument('--marked', type=float, default=0.0, metavar='P',
+                        help="with --human-like: the teacher's feedback_marked, a share P of "
+                             'its late verdicts given stamped with their step (a person who '
+                             'pauses to judge)')
     parser.add_argument('--set', action='append', default=[], metavar='NAME=VALUE',
                         help='a TamerConfig field (repeatable)')
     parser.add_argument('--out', type=Path, default=None)
@@ -140,7 +147,7 @@ def main(argv=None) -> int:
         for seed in args.seeds:
             result = run_trial(seed, args.steps, args.heldout, args.mode, args.explore,
                                args.human_like, overrides, Path(workdir), args.stamped_late,
-                               args.press_times)
+                               args.press_times, args.marked)
             results.append(result)
             print(json.dumps(result), flush=True)
     held = sum(r['heldout_episodes'] for r in results)
@@ -152,7 +159,8 @@ def main(argv=None) -> int:
                                         'explore': args.explore,
                                         'human_like': args.human_like,
                                         'stamped_late': args.stamped_late,
-                                        'press_times': args.press_times, 'overrides': overrides,
+                                        'press_times': args.press_times,
+                                        'marked': args.marked, 'overrides': overrides,
                                         'results': results}, indent=1) + '\n')
     return 0
 

@@ -49,10 +49,13 @@ def give(agent, judgements, human_like: bool, press_times: bool = False) -> None
     Hand the teacher's judgements to the agent: stamped on time, or plain (late, human-like).
 
     ``press_times``: late ones carry the moment they were given (source 'pressed'), as the
-    console's key presses and ``attention_train --press-times`` do.
+    console's key presses and ``attention_train --press-times`` do. A late one the teacher
+    marked (``feedback_marked``) goes stamped, as feedback_node sends it.
     """
     for judgement in judgements:
-        if human_like and press_times:
+        if human_like and judgement.marked:  # given with its step (the teacher's feedback_marked)
+            agent.on_feedback(judgement.h, 'stamped', judgement.stamp_ns)
+        elif human_like and press_times:
             agent.on_feedback(judgement.h, 'pressed', judgement.pressed_ns)
         elif human_like:
             agent.on_feedback(judgement.h, 'plain')
