@@ -19,6 +19,7 @@ from rclpy.parameter_client import AsyncParameterClient
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Image, Joy
+from std_srvs.srv import Trigger
 
 pytestmark = pytest.mark.topics
 
@@ -283,6 +284,54 @@ def test_pause_and_resume_in_real_time_and_lockstep(start_node, probe):
     following = learner.next_observation(pending)  # applied on resume, once
     status = learner.status_at(stamp_to_ns(following.header.stamp))
     assert status['agent_step'] == 2 and status['dropped_actions'] == 0
+    assert env.stop(signal.SIGINT) == 0
+
+
+def step_once(probe):
+    """Call env_node's ~/step (std_srvs/Trigger); return its response."""
+    client = probe.node.create_client(Trigger, '/env_node/step')
+    try:
+        assert client.wait_for_service(timeout_sec=10.0)
+        future = client.call_async(Trigger.Request())
+        assert wait_until(future.done, 10.0)
+        return future.result()
+    finally:
+        probe.node.destroy_client(client)
+
+
+def test_while_paused_a_person_steps_one_step_at_a_time(start_node, probe):
+    # Real time: each ~/step takes one step with the agent's latest action, and stays paused.
+    learner = Learner(probe)
+    env = start_node('env_node', {'warmup_steps': 0, 'rate_hz': 30})
+    assert learner.observations.wait_count(3, STARTUP_S)
+    refused = step_once(probe)
+    assert not refused.success and 'not paused' in refused.message  # it steps on its own
+    assert set_paused(probe, True).successful
+    time.sleep(0.3)  # a step in flight
+    for _ in range(2):
+        count = len(learner.observations.snapshot())
+        assert step_once(probe).success
+        assert learner.observations.wait_count(count + 1, REPLY_S)
+        assert not learner.observations.wait_count(count + 2, 0.5)  # one, and paused again
+    assert env.wait_for_log('one step taken while paused', REPLY_S)
+    assert env.stop(signal.SIGINT) == 0
+
+    # Lockstep: the step applies the agent's answer to the observation on screen, once.
+    learner = Learner(probe)
+    env = start_node('env_node', {'warmup_steps': 0, 'action_timeout': 30.0, 'paused': True},
+                     name='env_lockstep')
+    pending = stamp_to_ns(learner.connect().header.stamp)
+    refused = step_once(probe)
+    assert not refused.success and 'not answered' in refused.message
+    learner.send(pending, RIGHT)  # the answer comes while paused: it waits for the person
+    assert not learner.observations.wait_for(
+        lambda ms: stamp_to_ns(ms[-1].header.stamp) > pending, 1.0)
+    assert wait_until(lambda: step_once(probe).success, REPLY_S)  # once the answer is in
+    following = learner.next_observation(pending)
+    status = learner.status_at(stamp_to_ns(following.header.stamp))
+    assert status['agent_step'] == 1 and status['dropped_actions'] == 0
+    assert not learner.observations.wait_for(
+        lambda ms: stamp_to_ns(ms[-1].header.stamp) > stamp_to_ns(following.header.stamp), 1.0)
     assert env.stop(signal.SIGINT) == 0
 
 

@@ -156,9 +156,18 @@ def test_a_person_teaches_from_the_browser(probe, start_node, tmp_path):
             await page.press('-')
             assert await page.wait_for(
                 "document.getElementById('confirmed').textContent === '9'")
-            return view, plus['seq'], await page.evaluate('window.frameStamp')
+            paused_frame = await page.evaluate('window.frameStamp')
+            # The step button: one step with the agent's answer, still paused; then judge it.
+            assert not await page.evaluate("document.getElementById('step_once').disabled")
+            await page.evaluate("document.getElementById('step_once').click()")
+            assert await page.wait_for(f"window.frameStamp !== '{paused_frame}'"), (
+                await page.evaluate('document.body.innerText'))
+            await page.press('+')
+            assert await page.wait_for(
+                "document.getElementById('confirmed').textContent === '10'")
+            return view, plus['seq'], paused_frame, await page.evaluate('window.frameStamp')
 
-    shown, seq, paused_frame = asyncio.run(session())
+    shown, seq, paused_frame, stepped_frame = asyncio.run(session())
     # The H panel: one bar per action of the task, the action the learner took on the frame
     # on screen highlighted, and the H it published for that very step.
     names = list(load_task('montezuma').action_names)
@@ -190,12 +199,13 @@ def test_a_person_teaches_from_the_browser(probe, start_node, tmp_path):
         (1.0, 'pressed', 1, 'ok'), (1.0, 'pressed', 2, 'ok'), (1.0, 'pressed', 3, 'ok'),
         (1.0, 'pressed', 4, 'ok'), (1.0, 'pressed', 5, 'ok'), (1.0, 'pressed', 6, 'ok'),
         (-1.0, 'pressed', 7, 'ok'), (-0.5, 'plain', 1, 'ok'), (1.0, 'pressed', 8, 'ok'),
-        (-1.0, 'stamped', 1, 'ok')]
-    on_frame = feedback[-1]
-    assert on_frame['stamp_ns'] == int(paused_frame), (on_frame, paused_frame)
-    assert credits.wait_for(lambda m: credit_of(m, on_frame['seq']), 10.0)
-    assert credit_of(credits.snapshot(), on_frame['seq']) == (
-        {int(paused_frame): 1.0}, -1.0, 'step')
+        (-1.0, 'stamped', 1, 'ok'), (1.0, 'stamped', 2, 'ok')]
+    for line, frame, h in ((feedback[-2], paused_frame, -1.0), (feedback[-1], stepped_frame, 1.0)):
+        assert line['stamp_ns'] == int(frame), (line, frame)
+        assert credits.wait_for(lambda m: credit_of(m, line['seq']), 10.0)
+        assert credit_of(credits.snapshot(), line['seq']) == ({int(frame): 1.0}, h, 'step')
+    assert int(stepped_frame) > int(paused_frame)
+    assert env.wait_for_log('one step taken while paused', 5.0)
     # Each of ours timed on the env's clock from the frame on screen: near the newest
     # observation the learner had when it arrived (at most a step after it).
     for line in feedback[:7]:

@@ -36,6 +36,7 @@ from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import Image, Joy
+from std_srvs.srv import Trigger
 
 SCREEN_FRAME = 'atari_screen'
 RAM_FRAME = 'atari_ram'
@@ -46,6 +47,8 @@ START_RESEND_S = 0.5
 timeout): DDS discovery takes seconds, and a message sent before a new subscriber has matched
 this publisher on its side is lost."""
 LOG_THROTTLE_S = 5.0
+STEP_SERVICE = '~/step'
+"""std_srvs/Trigger: while paused, one step with the agent's answer (a person judging each)."""
 
 
 class EnvNode(Closing, Node):
@@ -100,6 +103,7 @@ class EnvNode(Closing, Node):
                                        config.preview_rate_hz)
         self.create_subscription(Joy, topics.ACTION, self._on_action, qos.ACTIONS)
         self.add_on_set_parameters_callback(self._on_set_parameters)
+        self.create_service(Trigger, STEP_SERVICE, self._on_step_request)
 
         # Callbacks run one at a time (single-threaded executor, one callback group); the lock
         # keeps the pending stamp and the step atomic even under a multi-threaded executor.
@@ -287,6 +291,31 @@ class EnvNode(Closing, Node):
             if changed:
                 self.get_logger().info('paused' if parameter.value else 'resumed')
         return SetParametersResult(successful=True)
+
+    def _on_step_request(self, request, response):
+        """Take one step while paused, with the agent's answer to the step on screen."""
+        with self._lock:
+            why = self._why_no_step()
+            if not why:
+                action = self._latest_action if self._rate_hz > 0 else self._deferred
+                self._deferred = None
+                self._advance(action)
+        response.success, response.message = not why, why or 'one step taken; still paused'
+        if not why:
+            self.get_logger().info('one step taken while paused')
+        return response
+
+    def _why_no_step(self) -> str:
+        """Return why ``~/step`` cannot step now ('' when it can); called with the lock held."""
+        if not self._paused:
+            return 'not paused: the env steps on its own'
+        if self._finished:
+            return 'finished: no more steps'
+        if self._rate_hz > 0 and self._tick_timer is None:
+            return 'not started yet'
+        if self._rate_hz <= 0 and self._deferred is None:
+            return 'the agent has not answered the step on screen yet'
+        return ''
 
     def _drop(self, bad: bool = False) -> int:
         counters = self._counters

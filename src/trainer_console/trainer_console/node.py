@@ -8,8 +8,8 @@ person: ``learner_view.py``); publishes each key press on ``feedback_pressed``
 (geometry_msgs/Vector3Stamped: h and the moment it was given, ``press_time.py``; plain
 ``feedback``, std_msgs/Float32, with ``press_times`` false), or while the env is paused on
 ``feedback_stamped`` (Vector3Stamped: h and the frame on screen, the step judged), and words on
-``utterance`` (std_msgs/String), the very topic ``ros2 topic pub`` uses, and sets env_node's
-``paused``.
+``utterance`` (std_msgs/String), the very topic ``ros2 topic pub`` uses, sets env_node's
+``paused`` and, while paused, steps it once at a time (its ``~/step`` service).
 The web server runs on its own thread (``web.ConsoleServer``); rclpy spins in the main one.
 """
 
@@ -38,6 +38,7 @@ from saliency_node.grounding import Grounder
 from saliency_node.manifest import load_manifest
 from sensor_msgs.msg import Image
 from std_msgs.msg import Float32, String
+from std_srvs.srv import Trigger
 from trainer_console.config import ConsoleConfig
 from trainer_console.matching import subscriber_names, wait_for_all_matched
 from trainer_console.press_time import frame_stamp, press_moment
@@ -95,6 +96,7 @@ class ConsoleNode(Closing, Node):
         self.create_subscription(DiagnosticArray, topics.FEEDBACK_CREDIT, self._on_credit,
                                  qos.HUMAN)
         self._env_parameters = AsyncParameterClient(self, self.config.env_node)
+        self._env_step = self.create_client(Trigger, f'{self.config.env_node}/step')
         self.create_timer(1.0, self._look_for_listeners)
         token = None
         if not self.config.loopback:
@@ -184,6 +186,8 @@ class ConsoleNode(Closing, Node):
             return self._give('utterance', text, String(data=text), topics.UTTERANCE)
         if kind in ('pause', 'resume'):
             return self._pause(kind == 'pause')
+        if kind == 'step':
+            return self._step()
         return {'ok': False, 'error': f'unknown command {kind!r}'}
 
     def listeners(self, kind: str) -> list:
@@ -248,6 +252,22 @@ class ConsoleNode(Closing, Node):
             return {'ok': False, 'error': 'the env did not take it'}
         self.state.paused, self.state.paused_by_env = paused, False
         self.get_logger().info('paused the env' if paused else 'resumed the env')
+        return {'ok': True}
+
+    def _step(self) -> dict:
+        """While paused: env_node takes one step (its ``~/step``), and stays paused."""
+        if not self._env_step.service_is_ready():
+            return {'ok': False, 'error': f'{self.config.env_node} does not answer'}
+        future = self._env_step.call_async(Trigger.Request())
+        deadline = time.monotonic() + 5.0
+        while not future.done() and time.monotonic() < deadline:
+            time.sleep(0.01)
+        result = future.result() if future.done() else None
+        if result is None:
+            return {'ok': False, 'error': 'the env did not answer'}
+        if not result.success:
+            return {'ok': False, 'error': f'no step: {result.message}'}
+        self.get_logger().info('stepped the env once')
         return {'ok': True}
 
     def on_close(self) -> None:

@@ -64,6 +64,7 @@ function showState(s) {
   $('furthest').textContent = s.furthest >= 0 ? `${s.furthest} (${(s.milestones || [])[s.furthest] || ''})` : '-';
   $('pause').textContent = s.paused ? 'resume' : 'pause';
   $('paused_hint').hidden = !s.judges_frame;
+  $('step_once').disabled = !s.paused;
   $('log').innerHTML = s.last.slice().reverse().map((p) =>
     `<li class="${p.confirmed ? 'good' : 'pending'}">${p.kind} ${escapeHtml(String(p.value))}` +
     `${p.confirmed ? ` logged (${p.status})` : ' waiting'}</li>`).join('');
@@ -202,4 +203,5 @@ $('say').addEventListener('submit', (event) => {
   if (text) { send({type: 'utterance', text}); $('utterance').value = ''; }
 });
 $('pause').addEventListener('click', () => send({type: $('pause').textContent === 'pause' ? 'pause' : 'resume'}));
+$('step_once').addEventListener('click', () => send({type: 'step'}));
 connect();
