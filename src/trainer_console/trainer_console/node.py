@@ -243,11 +243,7 @@ class ConsoleNode(Closing, Node):
     def _pause(self, paused: bool) -> dict:
         if not self._env_parameters.services_are_ready():
             return {'ok': False, 'error': f'{self.config.env_node} does not answer'}
-        future = self._env_parameters.set_parameters([Parameter('paused', value=paused)])
-        deadline = time.monotonic() + 5.0
-        while not future.done() and time.monotonic() < deadline:
-            time.sleep(0.01)
-        result = future.result() if future.done() else None
+        result = _answer(self._env_parameters.set_parameters([Parameter('paused', value=paused)]))
         if result is None or not result.results[0].successful:
             return {'ok': False, 'error': 'the env did not take it'}
         self.state.paused, self.state.paused_by_env = paused, False
@@ -258,11 +254,7 @@ class ConsoleNode(Closing, Node):
         """While paused: env_node takes one step (its ``~/step``), and stays paused."""
         if not self._env_step.service_is_ready():
             return {'ok': False, 'error': f'{self.config.env_node} does not answer'}
-        future = self._env_step.call_async(Trigger.Request())
-        deadline = time.monotonic() + 5.0
-        while not future.done() and time.monotonic() < deadline:
-            time.sleep(0.01)
-        result = future.result() if future.done() else None
+        result = _answer(self._env_step.call_async(Trigger.Request()))
         if result is None:
             return {'ok': False, 'error': 'the env did not answer'}
         if not result.success:
@@ -275,6 +267,14 @@ class ConsoleNode(Closing, Node):
         server = getattr(self, 'server', None)
         if server is not None:
             server.stop()
+
+
+def _answer(future, timeout_s: float = 5.0):
+    """Wait for env_node's answer (rclpy completes it on the main thread); None if none came."""
+    deadline = time.monotonic() + timeout_s
+    while not future.done() and time.monotonic() < deadline:
+        time.sleep(0.01)
+    return future.result() if future.done() else None
 
 
 def _verdict(h: float, stamp_ns: int) -> Vector3Stamped:
