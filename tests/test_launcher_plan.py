@@ -246,6 +246,19 @@ def test_the_late_learner_is_one_option_away_with_late_feedback(tmp_path):
     assert parse_options(['--human-like', '--late-learner']).late_learner
 
 
+def test_the_learner_asks_the_teacher_one_option_away(tmp_path):
+    tamer = _plan(tmp_path, human_like=True, ask=0.15).effective['tamer_node']
+    assert tamer['ask_rate'] == 0.15 and tamer['credit'] == 'window'  # the rest: the window
+    assert 'ask_rate' not in _plan(tmp_path, human_like=True).effective['tamer_node']
+    assert TamerConfig().ask_rate == 0.0  # never asks unless told (the thesis's learner)
+    for options, problem in (({'synthetic': False}, 'only the synthetic teacher'),
+                             ({'trainer': 'thesis'}, 'only the synthetic teacher'),
+                             ({'ask': 1.5}, 'in \\[0, 1\\]')):
+        with pytest.raises(ValueError, match=problem):
+            _plan(tmp_path, **dict({'ask': 0.15}, **options))
+    assert parse_options(['--human-like', '--ask', '0.2']).ask == 0.2
+
+
 @pytest.mark.parametrize('options, readers', [
     ({}, 2), ({'synthetic': False}, 3), ({'console': True}, 3),
     ({'synthetic': False, 'console': True}, 4), ({'realtime': True}, 2)])
@@ -480,6 +493,9 @@ def test_the_summary_counts_what_the_learner_logged(tmp_path):
     text = summary_lines({'learner_log': counts, 'utterance_count': 9})[1]
     assert 'feedback logged by the learner 4 (3 used, 1 invalid, mean h +0.33)' in text
     assert 'utterances 1' in text  # the learner's count, not the launcher's 9
+    assert 'questions' not in text  # a learner that never asks
+    asked = summary_lines({'learner_log': counts, 'metrics': {'ask/asked': 12}})[1]
+    assert 'mean h +0.33), questions asked 12, utterances' in asked
     assert learner_log_counts(tmp_path / 'none.jsonl') is None
 
 

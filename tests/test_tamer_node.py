@@ -394,3 +394,23 @@ def test_h_goes_out_at_most_at_its_rate_when_the_steps_come_faster(
     assert 1 <= len(sent) <= 5 + 5.0 * elapsed + 1, (len(sent), elapsed)  # burst, then rate
     assert len(sent) < len(stamps) and set(sent) <= set(stamps) and sent == sorted(sent)
     assert node.stop(signal.SIGINT) == 0
+
+
+@pytest.mark.topics
+def test_it_asks_about_the_steps_it_is_unsure_of_after_answering_them(
+        probe, start_node, tmp_path, frames):
+    """ask_rate: a question per step it is unsure of, at most the rate, naming step and action."""
+    node = start_node('tamer_node', {'run_dir': str(tmp_path / 'run'), 'ask_rate': 0.5,
+                                     'ask_margin': 2.5})  # unsure everywhere: the rate decides
+    graph = Graph(probe)
+    questions = probe.subscribe(Vector3Stamped, topics.QUESTION, qos.HUMAN)
+    graph.wait_connected(node)
+    assert probe.wait_for_publishers(topics.QUESTION, timeout=30.0)
+    stamps = [(i + 1) * STEP_NS for i in range(40)]
+    actions = {stamp: graph.step(frames[i % len(frames)], stamp)
+               for i, stamp in enumerate(stamps)}
+    assert questions.wait_for(lambda msgs: len(msgs) >= 20, 10.0), node.log_text()[-2000:]
+    asked = {stamp_to_ns(m.header.stamp): m.vector for m in questions.snapshot()}
+    assert sorted(asked) == stamps[1::2]  # a token every other step, spent at once
+    assert all(int(v.x) == actions[stamp] and 0.0 <= v.y < 2.5 for stamp, v in asked.items())
+    assert node.stop(signal.SIGINT) == 0

@@ -55,7 +55,10 @@ class Player:
         msg = next(m for m in self.statuses.snapshot() if stamp_to_ns(m.header.stamp) == stamp_ns)
         return status_values(msg)
 
-    def play(self, steps: int) -> None:
+    def play(self, steps: int, ask_every: int = 0) -> None:
+        """Play ``steps`` steps; with ``ask_every``, ask the teacher about every such step."""
+        questions = self._probe.publisher(Vector3Stamped, topics.QUESTION, qos.HUMAN)
+        self.asked = []
         assert self.observations.wait_count(1, STARTUP_S), 'no observation from env_node'
         assert self._probe.wait_for_subscribers(self.actions, timeout=STARTUP_S)
         last = -1
@@ -81,6 +84,12 @@ class Player:
             joy.header.stamp = ns_to_stamp(stamp_ns)
             self.actions.publish(joy)
             self.played[stamp_ns] = (action, expert_action, wrong)
+            if ask_every and index % ask_every == 2:  # after the action, as tamer_node asks
+                question = Vector3Stamped()
+                question.header.stamp = joy.header.stamp
+                question.vector.x, question.vector.y = float(action), 0.1
+                questions.publish(question)
+                self.asked.append(stamp_ns)
             last = stamp_ns
 
 
@@ -174,4 +183,26 @@ def test_a_marking_teacher_gives_some_late_verdicts_with_their_step(probe, start
     marked, given = len(stamped.snapshot()), len(stamped.snapshot()) + len(plain.snapshot())
     assert 0.3 <= marked / given <= 0.7, (marked, given)
     assert teacher.wait_for_log('marked 0.5', 1.0)
+    assert teacher.stop(signal.SIGINT) == 0
+
+
+def test_the_teacher_answers_a_question_about_a_step_stamped_with_it(probe, start_node):
+    # The learner asks about a step (topic question, after its action): the human-like
+    # teacher, late and plain otherwise, answers on feedback_stamped with that step's stamp,
+    # judging the action the env applied there; a step asked about is not also judged late.
+    player, teacher, stamped, plain, _ = start_graph(
+        probe, start_node, {'utterance_interval': -1.0, 'feedback_delay_min': 0.3,
+                            'feedback_delay_max': 0.6, 'feedback_probability': 1.0})
+    player.play(100, ask_every=5)
+    assert stamped.wait_count(15, REPLY_S), teacher.log_text()[-3000:]
+    time.sleep(1.0)  # the last late verdicts in flight
+    answers = [stamp_to_ns(m.header.stamp) for m in stamped.snapshot()]
+    assert len(set(answers)) == len(answers) and set(answers) <= set(player.asked)
+    for msg in stamped.snapshot():
+        action, expert_action, wrong = player.played[stamp_to_ns(msg.header.stamp)]
+        assert (int(msg.vector.z), int(msg.vector.y)) == (action, expert_action)
+        assert msg.vector.x == (-1.0 if wrong else 1.0)
+    # Every step judged once at most: late and plain, or as an answer (the steps in the air
+    # are not judged, nor those whose delay outlasts the play).
+    assert 50 <= len(plain.snapshot()) and len(plain.snapshot()) + len(answers) <= 99
     assert teacher.stop(signal.SIGINT) == 0

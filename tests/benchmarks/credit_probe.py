@@ -18,10 +18,17 @@ Credit mechanisms over the window: ``--credit each`` (every step regressed towar
 TAMER's), ``mixture`` (the window's credit-weighted mean fitted to h), ``posterior`` (each
 step's credit weighed by how likely H makes the verdict there); ``--replay N`` re-learns N
 stored verdicts a step. Acting: greedy on H clipped to [-1, 1], near-ties (``--margin``) broken
-at random; ``--keep`` keeps the last action while it is among them and not judged bad.
+at random; ``--keep`` keeps the last action while it is among them and not judged bad;
+``--epsilon E`` acts at random on a share E of the steps (so that the actions a window mixes
+are independent of each other).
+
+Questions (tamer_node ``ask_rate``): ``--ask RATE`` asks the teacher about a step where the two
+best actions are within ``--ask-margin``, at most RATE a step; the teacher answers stamped with
+that step (``ActionTeacher.ask``) and does not also judge it late.
 
 Run: ``.venv/bin/python tests/benchmarks/credit_probe.py --teacher human_like --seeds 100 101
-[--jitter 1] [--credit mixture --replay 1] [--knob feedback_delay_max=0.6] [--out FILE]``.
+[--jitter 1] [--credit mixture --replay 1] [--knob feedback_delay_max=0.6] [--ask 0.15]
+[--out FILE]``.
 """
 
 import argparse
@@ -32,6 +39,9 @@ import sys
 import time
 
 import numpy as np
+
+
+ASK_BURST = 5.0  # tamer_node's ask_burst default
 
 
 def run_trial(seed: int, args) -> dict:
@@ -49,6 +59,7 @@ def run_trial(seed: int, args) -> dict:
     knobs = dict(knobs, **{k: float(v) for k, v in (kv.split('=', 1) for kv in args.knob)})
     teacher = TaskTeacher(RoomOneKnowledge(None), NUM_ACTIONS,
                           TeacherConfig(utterance_interval=-1.0, seed=seed, **knobs))
+    tokens = [0.0]  # --ask: questions saved up
     window = (args.window_min, args.window_max) if args.window_max else HUMAN_LIKE_WINDOW_S
     rng = np.random.default_rng(seed)
     values = collections.defaultdict(lambda: np.zeros(NUM_ACTIONS))
@@ -84,7 +95,7 @@ def run_trial(seed: int, args) -> dict:
     acted, verdicts, purity = {}, [], []
 
     def credit_of(judgement, newest):
-        marked = args.marked > 0.0 and rng.random() < args.marked
+        marked = judgement.marked or (args.marked > 0.0 and rng.random() < args.marked)
         if args.teacher == 'human_like' and not marked:
             return window_credit(spans_from_stamps(list(recent), newest), newest, *window)
         order = list(recent)
@@ -110,6 +121,7 @@ def run_trial(seed: int, args) -> dict:
         for _ in range(args.replay if verdicts else 0):
             learn(*verdicts[int(rng.integers(len(verdicts)))])
 
+    where, deaths = collections.Counter(), collections.Counter()
     route = [phase for phase in Phase if phase is not Phase.AIRBORNE]
     step = env.warm_up()
     see(step)
@@ -123,12 +135,21 @@ def run_trial(seed: int, args) -> dict:
             action = last
         else:
             action = int(rng.choice(np.flatnonzero(q >= best - args.margin)))
+        if args.epsilon > 0.0 and rng.random() < args.epsilon:
+            action = int(rng.integers(NUM_ACTIONS))
         last = action
+        answers = []
+        if args.ask > 0.0:  # tamer_node's Asker: unsure when the two best are close
+            tokens[0] = min(tokens[0] + args.ask, ASK_BURST)
+            top = np.sort(q)[::-1]
+            if tokens[0] >= 1.0 - 1e-9 and top[0] - top[1] < args.ask_margin:
+                tokens[0] -= 1.0
+                answers = teacher.ask(step.sim_time_ns)  # answered when judged (marked)
         acted[step.sim_time_ns] = (here, action)
         recent.append(step.sim_time_ns)
         newest = step.sim_time_ns  # what a plain verdict is stamped with on arrival
         step = env.step(action)
-        feedback, ended = see(step), step
+        feedback, ended = answers + see(step), step
         if step.done:
             step = env.reset()
             feedback += see(step)
@@ -136,10 +157,18 @@ def run_trial(seed: int, args) -> dict:
         if ended.state.has_key and first_key is None:
             first_key = t
         lives_lost += int(ended.life_lost)
+        if args.trace and t > args.steps - 3000:
+            place = (teacher.knowledge.expert.phase.name, ended.state.x // 8 * 8)
+            where[place] += 1
+            deaths[place] += int(ended.life_lost)
         if teacher.knowledge.expert.phase in route:
             furthest = max(furthest, route.index(teacher.knowledge.expert.phase))
     env.close()
+    if args.trace:
+        print('where', sorted(where.items(), key=lambda kv: -kv[1])[:12])
+        print('deaths', sorted(deaths.items(), key=lambda kv: -kv[1])[:8])  # (where it fell)
     return {'seed': seed, 'first_key_step': first_key, 'lives_lost': lives_lost,
+            'questions': teacher.counts['questions'], 'answered': teacher.counts['answered'],
             'furthest_stage': route[furthest].name,
             'label_purity': round(float(np.mean(purity)), 3) if purity else None,
             'agreement': round(teacher.counts['agreed'] / max(teacher.counts['judged'], 1), 3)}
@@ -168,6 +197,16 @@ def main(argv=None) -> int:
     parser.add_argument('--lr', type=float, default=0.3)
     parser.add_argument('--margin', type=float, default=0.1)
     parser.add_argument('--keep', action='store_true')
+    parser.add_argument('--epsilon', type=float, default=0.0,
+                        help='a share of the steps acted at random (decorrelates the actions '
+                             'a window mixes)')
+    parser.add_argument('--ask', type=float, default=0.0, metavar='RATE',
+                        help='the learner asks about steps where its two best actions are '
+                             'within --ask-margin, at most RATE a step; answered stamped')
+    parser.add_argument('--ask-margin', type=float, default=0.5,
+                        help='3: every step is unsure (questions at random steps)')
+    parser.add_argument('--trace', action='store_true',
+                        help='print where the agent was and died in the last 3,000 steps')
     parser.add_argument('--out', type=Path, default=None)
     args = parser.parse_args(argv)
     results = []

@@ -15,7 +15,9 @@ share on the judged step itself; and the same of what the learner holds at the e
 stage of the expert's route the agent was in. ``--knob`` changes a human-like knob of the
 teacher (``--knob feedback_delay_max=0 --knob feedback_delay_min=0``: on time and stamped).
 ``--marked P`` hands a share P of the late verdicts over stamped with the step they judge, as a
-person who pauses to judge in the trainer console (feedback_node's ``feedback_marked``).
+person who pauses to judge in the trainer console (feedback_node's ``feedback_marked``). With
+``--set ask_rate=R`` the agent asks about steps it is unsure of and the teacher answers them
+stamped (``ActionTeacher.ask``), as over the ``question`` topic.
 
 Used to find what stops Deep TAMER from learning the route (``docs/teaching.md``, the
 ablation); the targets themselves are measured through the graph (``attention_teaching``).
@@ -130,17 +132,19 @@ def run_trial(seed: int, steps: int, human_like: bool, overrides: dict, pace: fl
     started = time.monotonic()
     for t in range(1, steps + 1):
         action = agent.on_observation(step.sim_time_ns, step.observation)
+        answers = [answer for stamp, _, _ in agent.acting.take_questions()  # (tamer ask_rate)
+                   for answer in teacher.ask(stamp)]  # else answered when judged
         acted[step.sim_time_ns] = action
         recent.append(step.sim_time_ns)
         newest = step.sim_time_ns  # what the agent stamps plain feedback with (its newest)
         step = env.step(action)
-        feedback = see(step)
+        feedback = answers + see(step)
         ended = step
         if step.done:  # the teacher's due feedback at the reset goes out too, as in the graph
             step = env.reset()
             feedback += see(step)
         for judgement in feedback:
-            if stamped or (marked and marking.random() < marked):
+            if stamped or judgement.marked or (marked and marking.random() < marked):
                 agent.on_feedback(judgement.h, 'stamped', judgement.stamp_ns)
                 judged_plain.append((judgement.stamp_ns, judgement.action))  # (its seq)
             else:

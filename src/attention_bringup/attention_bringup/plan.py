@@ -145,6 +145,9 @@ class LaunchOptions:
     press_times: bool = False
     """With ``human_like``: each late verdict carries the moment it was given
     (``feedback_pressed``), credited from then (``PRESS_TIMES_CREDIT``)."""
+    ask: float = 0.0
+    """The learner asks the teacher about the steps it is least sure of, at most this many
+    questions per step (tamer_node ``ask_rate``); the teacher answers stamped. 0: never."""
     knobs: List[str] = field(default_factory=list)
     """With ``human_like``: ``NAME=VALUE`` changes of the named setting's knobs (``HumanLike``:
     for example ``feedback_probability=1``, a person who judges every move)."""
@@ -266,6 +269,11 @@ def argument_parser() -> argparse.ArgumentParser:
                              'gave it (topic feedback_pressed), and the tamer credits it from '
                              'then (effect anchor, window 0.2-1.6 s), still not told the step '
                              'it judges')
+    parser.add_argument('--ask', type=float, default=0.0, metavar='RATE',
+                        help='the learner asks the teacher about the steps where it is least '
+                             "sure (H's two best actions within ask_margin), at most RATE "
+                             'questions a step; the teacher answers each stamped with its step '
+                             '(tamer_node ask_rate; docs/teaching.md)')
     parser.add_argument('--knob', dest='knobs', action='append', default=[],
                         metavar='NAME=VALUE',
                         help='with --human-like: change one knob of its setting (repeatable; '
@@ -422,6 +430,8 @@ def launcher_overrides(options: LaunchOptions, seed: int, run_dir: Path,
     late = options.human_like or not options.synthetic
     if late and options.late_learner and not options.thesis_learner:
         overrides['tamer_node'].update(LATE_FEEDBACK_LEARNER)
+    if options.ask:
+        overrides['tamer_node']['ask_rate'] = float(options.ask)
     if options.records:  # the env and the trainer wait for the recorder too: no step unheard
         env = node_params(files_params, 'env_node')
         overrides['env_node']['wait_observation_nodes'] = ','.join(
@@ -497,6 +507,11 @@ def build_plan(options: LaunchOptions, bin_dir: Path, cwd: Path,
     if options.press_times and not options.human_like:
         raise ValueError('--press-times is how the human-like teacher gives its late verdicts: '
                          'add --human-like')
+    if options.ask and (options.trainer != 'teacher' or not options.synthetic):
+        raise ValueError('--ask: only the synthetic teacher answers questions (--trainer '
+                         'teacher); the console does not show them yet')
+    if not 0.0 <= options.ask <= 1.0:
+        raise ValueError(f'--ask is questions per step, in [0, 1]: got {options.ask}')
     if continuation.steps_done >= options.steps:
         raise ValueError(f'the run has done its {options.steps} steps already: nothing to '
                          'resume')

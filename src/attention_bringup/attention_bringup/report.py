@@ -127,11 +127,13 @@ def summary_lines(summary: Mapping) -> List[str]:
                 if first_key is not None else 'no key')
     if summary.get('task', ROOM_1) != ROOM_1:
         key_text = f'{summary.get("episodes_solved", 0)} solved'
+    asked = metrics.get('ask/asked')
+    asked_text = f', questions asked {int(asked)}' if asked else ''
     return [
         f'{summary.get("steps", 0)} steps in {format_duration(summary.get("wall_time_s", 0))} '
         f'({summary.get("steps_per_s", 0):.1f} steps/s), {summary.get("episodes", 0)} episodes, '
         f'{key_text}; {reached}',
-        f'{feedback_text(summary)}, utterances {utterances}, '
+        f'{feedback_text(summary)}{asked_text}, utterances {utterances}, '
         'saliency images '
         f'{counts.get("saliency", 0)}; {updates_text}{loss_text}',
         f'{summary.get("status", "?")}: {summary.get("exit_text", "")}' + (

@@ -38,3 +38,7 @@ ACTION_VALUES = 'action_values'
 # diagnostic_msgs/DiagnosticArray, one per feedback learned from: its seq and the steps its
 # credit went to, with their weights (the console's strip under the frame)
 FEEDBACK_CREDIT = 'feedback_credit'
+# geometry_msgs/Vector3Stamped, tamer -> trainer: the learner asks about the step of the header
+# (x = the action it took, y = the gap between H's two best actions); the trainer answers on
+# feedback_stamped with that stamp
+QUESTION = 'question'

@@ -17,12 +17,20 @@ What a teacher thinks of a step, whether and how it judges, and what it says are
 Pure (no rclpy).
 """
 
+import collections
 from dataclasses import dataclass
 from typing import Any, List, NamedTuple, Optional, Tuple
 
 from feedback_node.human_like import FeedbackScheduler, HumanLike
 from feedback_node.utterances import IntervalSchedule, Utterance
+import numpy as np
 
+
+QUESTIONS_HELD = 1000
+"""Questions waiting for their step to be judged, and judged steps a question may still ask
+about, at most each (the oldest forgotten first)."""
+ANSWER_STREAM = 7
+"""Seeds the answers' wrong signs apart from the human-like draws."""
 
 TRAINERS = ('teacher', 'thesis')
 """feedback_node ``trainer``: the teacher (``task_teacher``), or the thesis's (``trainer.py``)."""
@@ -77,7 +85,9 @@ class ActionTeacher:
         self.scheduler = FeedbackScheduler(self.config, self.config.seed)
         self.schedule = IntervalSchedule(self.config.utterance_interval)
         self._counts = dict.fromkeys(('steps', 'judged', 'agreed') + self.SILENT + (
-            'unjudged_resets', 'unjudged_gaps', 'duplicates', 'restarts'), 0)
+            'unjudged_resets', 'unjudged_gaps', 'duplicates', 'restarts', 'questions',
+            'answered'), 0)
+        self._answer_rng = np.random.default_rng([self.config.seed, ANSWER_STREAM])
         self.reset()
 
     @property
@@ -92,6 +102,9 @@ class ActionTeacher:
         """Forget the trial so far (pending delayed feedback too)."""
         self.scheduler.clear()
         self.schedule.reset()
+        self._asked: 'collections.OrderedDict[int, None]' = collections.OrderedDict()
+        self._judged: 'collections.OrderedDict[int, Judgement]' = collections.OrderedDict()
+        self._answers: List[Judgement] = []
         self._last = None  # the step T seen before, and what the teacher decided of it
         self._decided: Any = None
 
@@ -118,16 +131,55 @@ class ActionTeacher:
                 self._judge(last, self._decided, seen)
         self._last = seen
         self._decided = self._decide(seen, new_episode)
-        return TeacherOutput(self.scheduler.release(seen.stamp_ns),
+        return TeacherOutput(self._take_answers() + self.scheduler.release(seen.stamp_ns),
                              self._speak(seen, self._decided))
+
+    def ask(self, stamp_ns: int) -> List[Judgement]:
+        """
+        Answer the learner's question about the step of ``stamp_ns`` once it is judged.
+
+        Return the answer now if the step was judged already; else it comes with the output of
+        the step that judges it. A step the teacher is silent on gets no answer. The answer is
+        the teacher's verdict on that step, given with it (``marked``: published stamped), with
+        the human-like share of wrong signs but neither a delay nor a skip: a person asked about
+        a paused frame answers about that frame. A step asked about before it is judged is not
+        also judged late.
+        """
+        self._counts['questions'] += 1
+        judged = self._judged.pop(stamp_ns, None)
+        if judged is not None:
+            return [self._answer(judged)]
+        self._asked[stamp_ns] = None
+        while len(self._asked) > QUESTIONS_HELD:
+            self._asked.popitem(last=False)
+        return []
+
+    def _answer(self, judgement: Judgement) -> Judgement:
+        self._counts['answered'] += 1
+        noise = self.config.feedback_noise
+        if noise > 0.0 and judgement.h != 0.0 and self._answer_rng.random() < noise:
+            judgement = judgement._replace(h=-judgement.h, flipped=True)
+        return judgement._replace(pressed_ns=judgement.seen_ns, marked=True)
+
+    def _take_answers(self) -> List[Judgement]:
+        answers, self._answers = self._answers, []
+        return answers
 
     def _give(self, last, seen, expert_action: int, same: bool) -> None:
         """Judge the action of ``last`` (seen done at ``seen``): +1 as good as the expert's."""
         self._counts['judged'] += 1
         self._counts['agreed'] += int(same)
-        self.scheduler.consider(Judgement(
-            stamp_ns=last.stamp_ns, h=1.0 if same else -1.0, expert_action=expert_action,
-            action=seen.action, seen_ns=seen.stamp_ns))
+        judgement = Judgement(stamp_ns=last.stamp_ns, h=1.0 if same else -1.0,
+                              expert_action=expert_action, action=seen.action,
+                              seen_ns=seen.stamp_ns)
+        if last.stamp_ns in self._asked:  # asked about: answered now, not judged late
+            del self._asked[last.stamp_ns]
+            self._answers.append(self._answer(judgement))
+            return
+        self.scheduler.consider(judgement)
+        self._judged[last.stamp_ns] = judgement
+        while len(self._judged) > QUESTIONS_HELD:
+            self._judged.popitem(last=False)
 
     def _decide(self, seen, new_episode: bool) -> Any:
         """Return what the teacher thinks of step ``seen`` (kept until the next step)."""

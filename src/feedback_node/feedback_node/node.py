@@ -11,7 +11,8 @@ publishes the feedback judging the action of the previous step T (``feedback_sta
 T; the plain ``feedback`` only with ``plain_copies`` or when the teacher is late, or with
 ``press_times`` a late verdict on ``feedback_pressed``, stamped with the moment given) and,
 when one is due, the utterance said at T' (``utterance_stamped``, stamp T', then the plain
-``utterance``). With ``synthetic`` false it
+``utterance``). The teacher answers the learner's questions (``question``: a step it asks
+about) on ``feedback_stamped``, stamped with that step. With ``synthetic`` false it
 publishes nothing and logs what a person says on ``utterance``, ``feedback`` and
 ``feedback_pressed`` (the console's timed presses); bad input gets
 a clear error line and is counted. ``synthetic`` can be switched at run time
@@ -74,7 +75,8 @@ class FeedbackNode(Node):
         self._restarts_logged = 0
         self._counts = {'bad_positions': 0, 'bad_status': 0, 'heard_utterances': 0,
                         'heard_feedback': 0, 'bad_utterances': 0, 'bad_feedback': 0,
-                        'utterances': 0}
+                        'utterances': 0, 'unanswerable_questions': 0}
+        self._asked = False  # a learner asked: it reads feedback_stamped (the answers)
 
         self._feedback_stamped_pub = self.create_publisher(
             Vector3Stamped, topics.FEEDBACK_STAMPED, qos.HUMAN)
@@ -105,6 +107,7 @@ class FeedbackNode(Node):
                                  lambda msg: self._on_heard_feedback(msg.data), qos.HUMAN)
         self.create_subscription(Vector3Stamped, topics.FEEDBACK_PRESSED,  # the console's
                                  lambda msg: self._on_heard_feedback(msg.vector.x), qos.HUMAN)
+        self.create_subscription(Vector3Stamped, topics.QUESTION, self._on_question, qos.HUMAN)
         self.add_on_set_parameters_callback(self._on_set_parameters)
         steady = Clock(clock_type=ClockType.STEADY_TIME)
         self.create_timer(config.summary_period, self._log_summary, clock=steady)
@@ -288,9 +291,10 @@ class FeedbackNode(Node):
         return self._feedback_pressed_pub if self._press_times else self._feedback_pub
 
     def _feedback_publishers(self) -> tuple:
-        """Return the publishers judgements go out on: a marking teacher's stamped one too."""
+        """Return the publishers judgements go out on: with marks or answers, stamped too."""
         publisher = self._feedback_publisher()
-        if self._config.feedback_marked > 0.0 and publisher is not self._feedback_stamped_pub:
+        if ((self._config.feedback_marked > 0.0 or self._asked)
+                and publisher is not self._feedback_stamped_pub):
             return publisher, self._feedback_stamped_pub
         return (publisher,)
 
@@ -351,6 +355,16 @@ class FeedbackNode(Node):
                                    judgement.action, judgement.pressed_ns, judgement.marked)
         if out.utterance is not None:
             self._publish_utterance(out.utterance)
+
+    def _on_question(self, msg: Vector3Stamped) -> None:
+        """Answer the learner's question about a step, stamped (``ActionTeacher.ask``)."""
+        if not self._synthetic or self._kind != 'teacher':
+            self._counts['unanswerable_questions'] += 1  # a person, or the thesis's trainer
+            return
+        self._asked = True
+        for answer in self._trainer.ask(stamp_to_ns(msg.header.stamp)):
+            self._publish_feedback(answer.stamp_ns, answer.h, answer.expert_action,
+                                   answer.action, answer.pressed_ns, answer.marked)
 
     def _drop_status(self, problem: str) -> None:
         self._counts['bad_status'] += 1

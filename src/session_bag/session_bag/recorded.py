@@ -40,6 +40,7 @@ RECORDED = (
     RecordedTopic(topics.UTTERANCE_STAMPED, DiagnosticArray, qos.HUMAN),
     RecordedTopic(topics.FEEDBACK_LOGGED, DiagnosticArray, qos.HUMAN),
     RecordedTopic(topics.FEEDBACK_CREDIT, DiagnosticArray, qos.HUMAN),
+    RecordedTopic(topics.QUESTION, Vector3Stamped, qos.HUMAN),
     RecordedTopic(topics.AGENT_POSITION, PointStamped, qos.STEP_DATA),
     RecordedTopic(topics.ENV_STATUS, DiagnosticArray, qos.STEP_DATA),
     RecordedTopic(topics.METRICS, DiagnosticArray, qos.METRICS),

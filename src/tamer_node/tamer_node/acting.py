@@ -27,6 +27,7 @@ from tamer_node.model import HModel, preprocess, to_input
 from tamer_node.pairing import both_item
 from tamer_node.persistence import (
     KIND_ACTION, KIND_OBSERVATION, KIND_SALIENCY, KIND_TAKEN, StepJournal)
+from tamer_node.questions import Asker
 from tamer_node.revisits import Revisits
 from tamer_node.words import bag_of_words
 import torch
@@ -169,6 +170,12 @@ class ActingPath:
         self.revisits = (Revisits(config.revisit_penalty, config.revisit_steps, task.num_actions)
                          if config.revisit_penalty > 0.0 else None)
         """Actions taken lately in each exact state, counted against them (None: off)."""
+        self.asker = (Asker(config.ask_rate, config.ask_margin, config.ask_burst)
+                      if config.ask_rate > 0.0 else None)
+        self.questions: 'collections.deque[Tuple[int, int, float]]' = collections.deque(
+            maxlen=64)
+        """(stamp, action, gap) of the steps asked about, oldest first; the node takes them
+        after it has published the action (``take_questions``)."""
         # input_image 'saliency': observations waiting for their saliency image (stamp ->
         # monotonic arrival time); answered on the observation after saliency_timeout_s.
         self._awaiting: 'collections.OrderedDict[int, float]' = (
@@ -204,6 +211,9 @@ class ActingPath:
         self._held, self._decision = None, None
         if self.revisits is not None:
             self.revisits.clear()
+        if self.asker is not None:
+            self.asker.clear()
+        self.questions.clear()
 
     def on_observation(self, stamp: int, rgb: np.ndarray) -> Optional[int]:
         """Store observation ``stamp``; return the greedy action if the agent acts on it."""
@@ -384,4 +394,16 @@ class ActingPath:
             self.act_seconds.append(time.perf_counter() - started)
         self.counters['act/count'] += 1
         self.acted.append((record.stamp, action, values))
+        if self.asker is not None:
+            gap = self.asker.consider(values)
+            if gap is not None:
+                self.counters['ask/asked'] += 1
+                self.questions.append((record.stamp, action, gap))
         return action
+
+    def take_questions(self) -> List[Tuple[int, int, float]]:
+        """Return and forget the questions not yet taken (stamp, action, gap), oldest first."""
+        taken = []
+        while self.questions:
+            taken.append(self.questions.popleft())
+        return taken

@@ -83,6 +83,14 @@ class TamerConfig:
     just left, the agent tries another action, so a loop opens). 0: H alone (the thesis's)."""
     revisit_steps: int = 100
     """The acted steps ``revisit_penalty`` remembers (DoorKey: one episode's length)."""
+    ask_rate: float = 0.0
+    """Questions per acted step, at most, on average (questions.py): the agent asks the trainer
+    (topic ``question``) about a step where H's best action is less than ``ask_margin`` ahead
+    of the next; the answer comes stamped with that step. 0: never asks (the thesis's)."""
+    ask_margin: float = 0.5
+    """Below this gap between H's two best actions (within [-1, 1]) the agent is unsure."""
+    ask_burst: float = 5.0
+    """Questions saved up, at most, while the agent was sure (the token bucket's size)."""
     learning_rate: float = 3e-4
     """Adam step size of the learner (1e-3 with mostly -1 feedback killed the head's units)."""
     max_grad_norm: float = 1.0
@@ -264,6 +272,9 @@ class TamerConfig:
             'verdict_memory': self.verdict_memory >= 0.0,
             'revisit_penalty': self.revisit_penalty >= 0.0,
             'revisit_steps': self.revisit_steps >= 1,
+            'ask_rate': 0.0 <= self.ask_rate <= 1.0,
+            'ask_margin': self.ask_margin > 0.0,
+            'ask_burst': self.ask_burst >= 1.0,
             'decision_period_s': self.decision_period_s >= 0.0,
             'decision_switch_margin': self.decision_switch_margin >= 0.0,
             'credit_noise': 0.0 <= self.credit_noise < 0.5,

@@ -21,7 +21,7 @@ AGENT_COUNTERS = (
     'drop/observation_stamp', 'drop/saliency_stamp', 'session/restarts',
     'utterance/count', 'utterance/empty', 'utterance/too_long', 'feedback/logged',
     'disk/feedback_log_errors', 'act/paced', 'act/paced_ms', 'act/held',
-    'act/switched', 'act/revisits',
+    'act/switched', 'act/revisits', 'ask/asked',
     'log/feedback_lines', 'log/utterance_lines',
 )
 """Counted by the acting path, the intake and the node (``TamerAgent.counters``). ``log/...``:

@@ -7,8 +7,9 @@ Subscribes ``observation``, ``saliency``, ``feedback``, ``feedback_stamped``,
 publishes ``action`` (sensor_msgs/Joy with the answered image's header), ``metrics``,
 ``feedback_logged``: one receipt per feedback or utterance line written to the log,
 ``action_values`` (while anyone listens, at most ``values_rate_hz`` a second: H of every action
-on each step acted on, and the action taken) and ``feedback_credit`` (the steps each feedback
-learned from was credited to).
+on each step acted on, and the action taken), ``feedback_credit`` (the steps each feedback
+learned from was credited to) and ``question`` (with ``ask_rate``: the steps the agent asks
+the trainer about, answered on ``feedback_stamped``).
 Every TamerConfig field is a parameter of the same name; ``alpha`` may be changed at run time.
 
 Executor: one thread (``attention_common.executors``: the EventsExecutor) on purpose. Every
@@ -78,9 +79,11 @@ class TamerNode(Closing, Node):
         self.credit_pub = self.create_publisher(DiagnosticArray, topics.FEEDBACK_CREDIT,
                                                 qos.HUMAN)
         self.agent.worker.on_credit = self._publish_credit
+        self.question_pub = self.create_publisher(Vector3Stamped, topics.QUESTION, qos.HUMAN)
         self._gate = RecorderGate(
             self, self.config.wait_for_recorder,
-            (self.action_pub, self.metrics_pub, self.logged_pub, self.credit_pub),
+            (self.action_pub, self.metrics_pub, self.logged_pub, self.credit_pub,
+             self.question_pub),
             self.config.wait_for_recorder_s)
         self.create_subscription(Image, topics.OBSERVATION, self._on_observation, qos.FRAMES)
         self.create_subscription(Image, topics.SALIENCY, self._on_saliency, qos.FRAMES)
@@ -167,6 +170,7 @@ class TamerNode(Closing, Node):
         if action is not None:
             self._publish_action(msg.header, action)
             self._publish_values()
+            self._publish_questions()
 
     def _on_action_taken(self, msg: Joy) -> None:
         try:
@@ -187,6 +191,7 @@ class TamerNode(Closing, Node):
             header = Header(stamp=ns_to_stamp(stamp), frame_id=self._frame_id)
             self._publish_action(header, action)
         self._publish_values()
+        self._publish_questions()
 
     def _publish_action(self, header: Header, action: int) -> None:
         joy = Joy()
@@ -242,6 +247,14 @@ class TamerNode(Closing, Node):
             entry = acted.popleft()
             if self._values_budget is None or self._values_budget.allow(time.monotonic()):
                 self._publish_step_values(*entry)
+
+    def _publish_questions(self) -> None:
+        """After an action went out: the steps the agent asks the trainer about (ask_rate)."""
+        for stamp, action, gap in self.agent.acting.take_questions():
+            msg = Vector3Stamped()
+            msg.header = Header(stamp=ns_to_stamp(stamp), frame_id=self._frame_id)
+            msg.vector.x, msg.vector.y = float(action), float(gap)
+            self._gate.publish(self.question_pub, msg)
 
     def _publish_step_values(self, stamp: int, action: int, values) -> None:
         names = self.agent.task.action_names
