@@ -11,7 +11,8 @@ verdict the teacher releases when it sees a step reaches the learner after that 
 observation did (so the learner stamps it with that step). ``--explore E``: the
 learner's ``explore`` (a share E of its decisions at random, judged too): the greedy learner
 otherwise never tries a pick-up in front of the target once pick-ups elsewhere taught it that
-they are bad.
+they are bad. ``--set ask_rate=R``: the learner asks about steps it is unsure of and the
+teacher answers them stamped (``ActionTeacher.ask``), as over the ``question`` topic.
 The settings are the words study's (8 x 8, four objects, 50 steps an episode, 1.5 updates a
 step); the last ``--heldout`` steps are on held-out rooms with held-out target pairs.
 
@@ -94,6 +95,8 @@ def run_trial(seed: int, steps: int, heldout: int, mode: str, explore: float, hu
     begun = 0
     for k in range(steps):
         action = act(step)
+        due += [answer for stamp, _, _ in agent.acting.take_questions()  # (tamer ask_rate)
+                for answer in teacher.ask(stamp)]  # else answered when judged (marked)
         give(agent, due, plain, press_times)  # heard after the step they were released on
         step = env.step(action)
         due = see(step)
@@ -114,6 +117,7 @@ def run_trial(seed: int, steps: int, heldout: int, mode: str, explore: float, hu
             'late_solved': sum(e[2] for e in late),
             'training_picked': sum(e[1] for e in episodes if not e[0]),
             'updates_per_step': metrics['train/updates_per_step'],
+            'questions': teacher.counts['questions'], 'answered': teacher.counts['answered'],
             'wall_s': round(time.monotonic() - started, 1)}
 
 
