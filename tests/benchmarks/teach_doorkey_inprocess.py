@@ -11,7 +11,9 @@ The settings are DoorKey's (8 x 8, four distractors, 100 steps an episode; the l
 parameters from ``config/tasks/doorkey.yaml``: 1.5 minibatch updates per step, the verdict
 memory); the last ``--heldout`` steps are on held-out layouts. ``--knob`` sets one human-like
 knob of the teacher (``feedback_probability=0.33``: sparse alone), ``--stamped-late`` stamps
-late verdicts with the step they judge (a diagnostic: attribution perfect).
+late verdicts with the step they judge (a diagnostic: attribution perfect). ``--set
+ask_rate=R``: the learner asks about steps it is unsure of and the teacher answers them stamped
+(``ActionTeacher.ask``), as over the ``question`` topic.
 
 Run: ``.venv/bin/python tests/benchmarks/teach_doorkey_inprocess.py --seeds 100 101 --steps 10000
 [--human-like] [--set hold_steps=1 ...] [--out results.json]``.
@@ -80,8 +82,12 @@ def run_trial(seed: int, steps: int, heldout: int, human_like: bool, overrides: 
         acted[step.sim_time_ns] = action
         if len(acted) > steps - heldout:
             late_actions[action] += 1
+        due += [answer for stamp, _, _ in agent.acting.take_questions()  # (tamer ask_rate)
+                for answer in teacher.ask(stamp)]  # else answered when judged (marked)
         for judgement in due:  # released as this step showed, heard after it (the graph)
-            if late and press_times:  # when it was given, not the step it judges
+            if judgement.marked:  # an answer to a question: given with its step
+                agent.on_feedback(judgement.h, 'stamped', judgement.stamp_ns)
+            elif late and press_times:  # when it was given, not the step it judges
                 agent.on_feedback(judgement.h, 'pressed', judgement.pressed_ns)
                 judged_plain.append((judgement.stamp_ns, judgement.action))
             elif late:
@@ -108,6 +114,7 @@ def run_trial(seed: int, steps: int, heldout: int, human_like: bool, overrides: 
             'training_solved': sum(e[1] for e in episodes if not e[0]),
             'agreement': teacher.counts['agreed'] / max(teacher.counts['judged'], 1),
             'updates_per_step': metrics['train/updates_per_step'],
+            'questions': teacher.counts['questions'], 'answered': teacher.counts['answered'],
             'heldout_actions': dict(zip(ACTION_NAMES, late_actions)),
             'wall_s': time.monotonic() - started, **learned}
 
