@@ -481,3 +481,31 @@ def test_a_person_teaches_doorkey_over_topics(tmp_path, probe):
     assert [e['text'] for e in logged if e['kind'] == 'utterance'] == ['pick up the yellow key']
     feedback_log = (run_dir / 'logs' / 'feedback_node.log').read_text()
     assert "a person said 'pick up the yellow key'" in feedback_log
+
+
+def test_a_learner_that_asks_gets_each_answer_on_the_step_it_asked_about(tmp_path):
+    """attention_train --human-like --ask: questions on the graph, answers stamped and learned."""
+    run_dir = tmp_path / 'run'
+    result = subprocess.run(
+        [LAUNCHER, '--condition', 'vanilla', '--steps', str(STEPS), '--seed', '3', '--run-dir',
+         str(run_dir), '--human-like', '--ask', '0.3'],
+        capture_output=True, text=True, timeout=240)
+    assert result.returncode == 0, result.stderr[-4000:]
+    summary = _read_json(run_dir / 'summary.json')
+    assert summary['status'] == 'completed' and summary['exit_codes'] == dict.fromkeys(NODES, 0)
+    asked = summary['metrics']['ask/asked']
+    assert 0.2 * STEPS <= asked <= 0.3 * STEPS + 5  # the rate, and a burst of at most 5
+    assert f'questions asked {int(asked)}' in result.stdout
+    teacher = summary['trainer_counts']
+    # (a question published as the run ends may not be heard: the last step is not judged)
+    assert asked - 2 <= int(teacher['questions']) <= asked
+    assert 0 < int(teacher['answered']) <= int(teacher['questions'])
+    logged = [json.loads(line) for line in
+              (run_dir / 'feedback_log.jsonl').read_text().splitlines()]
+    stamped = [e for e in logged if e['kind'] == 'feedback' and e['source'] == 'stamped']
+    # Every answer reached the learner, on its own step; the rest of the verdicts came plain.
+    assert len(stamped) == int(teacher['answered'])
+    assert len({e['stamp_ns'] for e in stamped}) == len(stamped)
+    assert all(e['status'] == 'ok' for e in stamped)
+    assert any(e['source'] == 'plain' and e['status'] == 'ok' for e in logged
+               if e['kind'] == 'feedback')

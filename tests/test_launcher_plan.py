@@ -259,6 +259,15 @@ def test_the_learner_asks_the_teacher_one_option_away(tmp_path):
     assert parse_options(['--human-like', '--ask', '0.2']).ask == 0.2
 
 
+def test_the_learner_knows_plain_copies_only_when_the_trainer_sends_them(tmp_path):
+    copies = tmp_path / 'copies.yaml'
+    copies.write_text('feedback_node:\n  ros__parameters: {plain_copies: true}\n')
+    tamer = _plan(tmp_path, params_files=['copies.yaml']).effective['tamer_node']
+    assert tamer['plain_copies'] is True
+    assert 'plain_copies' not in _plan(tmp_path).effective['tamer_node']
+    assert TamerConfig().plain_copies is False  # every plain feedback its own
+
+
 @pytest.mark.parametrize('options, readers', [
     ({}, 2), ({'synthetic': False}, 3), ({'console': True}, 3),
     ({'synthetic': False, 'console': True}, 4), ({'realtime': True}, 2)])

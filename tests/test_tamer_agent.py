@@ -110,7 +110,7 @@ def test_feedback_for_an_unknown_step_is_logged_and_counted(agents, tmp_path):
 @pytest.mark.parametrize('source', ['stamped', 'pressed'])
 def test_plain_feedback_is_a_copy_while_stamped_feedback_flows(agents, tmp_path, source):
     # A pressed verdict (the moment it was given) has a plain copy too with plain_copies.
-    agent = agents(stamped_active_s=60.0)
+    agent = agents(stamped_active_s=60.0, plain_copies=True)
     play(agent, 4)
     agent.on_feedback(1.0, source, stamp(1))
     agent.on_feedback(1.0, 'plain')
@@ -123,7 +123,7 @@ def test_plain_feedback_is_a_copy_while_stamped_feedback_flows(agents, tmp_path,
 def test_a_persons_plain_feedback_beside_a_pressed_stream_is_learned_from(agents, tmp_path):
     # The console's presses carry their moment (pressed); someone's `ros2 topic pub` at the
     # same time is plain. Each plain pairs with one verdict of the same h at most.
-    agent = agents(stamped_active_s=60.0)
+    agent = agents(stamped_active_s=60.0, plain_copies=True)
     play(agent, 4)
     agent.on_feedback(1.0, 'pressed', stamp(1))
     agent.on_feedback(-1.0, 'plain')  # no -1 verdict to copy: a person's
@@ -132,6 +132,24 @@ def test_a_persons_plain_feedback_beside_a_pressed_stream_is_learned_from(agents
     assert processed(agent, 4)
     assert [e['status'] for e in log_lines(tmp_path / 'run')] == ['ok', 'ok', 'duplicate', 'ok']
     assert agent.metrics()['feedback/duplicates'] == 1
+
+
+@pytest.mark.parametrize('source', ['stamped', 'pressed'])
+def test_without_copies_every_plain_verdict_beside_stamped_ones_is_learned(
+        agents, tmp_path, source):
+    # A teacher that marks or answers questions sends stamped and plain verdicts, and no copies
+    # (feedback_node's default): each plain one is its own. They were logged 'duplicate' and
+    # dropped when they came within stamped_active_s of a stamped verdict of the same h (93 %
+    # of the plain verdicts of a graph run with questions).
+    agent = agents(stamped_active_s=60.0)
+    play(agent, 4)
+    agent.on_feedback(1.0, source, stamp(1))
+    agent.on_feedback(1.0, 'plain')
+    agent.on_feedback(1.0, 'plain')
+    assert processed(agent, 3)
+    assert [e['status'] for e in log_lines(tmp_path / 'run')] == ['ok', 'ok', 'ok']
+    metrics = agent.metrics()
+    assert metrics['feedback/duplicates'] == 0 and metrics['feedback/count'] == 3
 
 
 def test_a_plain_copy_pairs_with_one_recent_verdict_of_the_same_h():

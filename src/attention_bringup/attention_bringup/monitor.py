@@ -25,7 +25,6 @@ from attention_bringup.gallery import (
     cdr_header_stamp_ns, GalleryCollector, MASK, OBSERVATION, SALIENCY)
 from attention_bringup.progress import parse_key_values, ProgressTracker
 from attention_common import qos, topics
-from attention_common.feedback import PlainCopies
 from attention_common.stamps import stamp_to_ns
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Vector3Stamped
@@ -71,7 +70,6 @@ class GraphMonitor(Node):
         self.receipts: Dict[str, int] = {'feedback': 0, 'utterance': 0}
         """The learner's receipts on ``feedback_logged``, by kind."""
         self._started = time.monotonic()
-        self._copies = PlainCopies()  # plain feedback that repeats a verdict is counted once
         sub = self.create_subscription
         self._status_subscription = sub(
             DiagnosticArray, topics.ENV_STATUS, self._on_env_status, qos.WATCH_STEPS)
@@ -153,16 +151,16 @@ class GraphMonitor(Node):
         """Count a verdict, stamped or pressed (x = h): a trainer's or the console's."""
         with self.lock:
             self._count(topic)
-            self._copies.verdict(time.monotonic(), float(msg.vector.x))
             self.tracker.counters.feedback += 1
             self.tracker.counters.feedback_sum += float(msg.vector.x)
 
     def _on_feedback(self, msg: Float32) -> None:
         with self.lock:
             self._count(topics.FEEDBACK)
-            if not self._copies.is_copy(time.monotonic(), float(msg.data)):  # a person's
-                self.tracker.counters.feedback += 1
-                self.tracker.counters.feedback_sum += float(msg.data)
+            # Heard only while a person trains (watch_plain): no trainer sends copies then, so
+            # every plain feedback is the person's own, even beside their stamped presses.
+            self.tracker.counters.feedback += 1
+            self.tracker.counters.feedback_sum += float(msg.data)
 
     def _on_utterance_stamped(self, msg: DiagnosticArray) -> None:
         stamp = stamp_to_ns(msg.header.stamp)

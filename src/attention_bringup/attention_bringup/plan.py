@@ -432,6 +432,8 @@ def launcher_overrides(options: LaunchOptions, seed: int, run_dir: Path,
         overrides['tamer_node'].update(LATE_FEEDBACK_LEARNER)
     if options.ask:
         overrides['tamer_node']['ask_rate'] = float(options.ask)
+    if node_params(files_params, 'feedback_node').get('plain_copies'):
+        overrides['tamer_node']['plain_copies'] = True  # the learner knows them for copies
     if options.records:  # the env and the trainer wait for the recorder too: no step unheard
         env = node_params(files_params, 'env_node')
         overrides['env_node']['wait_observation_nodes'] = ','.join(

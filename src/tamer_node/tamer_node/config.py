@@ -113,9 +113,17 @@ class TamerConfig:
     """Wall seconds a labelled sample waits for its step's saliency image before L2-less use."""
     history_steps: int = 512
     """Recent steps (image, action, time span) kept for attributing feedback to them."""
+    plain_copies: bool = False
+    """true: the trainer also sends every stamped (or pressed) verdict as plain feedback
+    (feedback_node ``plain_copies``), so a plain feedback that pairs with one of the same h at
+    most ``stamped_active_s`` before it is such a copy, logged 'duplicate' and not learned.
+    false (feedback_node's default too): every plain feedback is its own and is learned, even
+    right beside stamped ones (a teacher that marks or answers questions, a person who presses
+    both while paused and while the game runs)."""
     stamped_active_s: float = COPY_WINDOW_S
     """Wall seconds after a stamped (or pressed) verdict during which one plain feedback of the
-    same h counts as its copy (``attention_common.feedback.PlainCopies``)."""
+    same h counts as its copy, with ``plain_copies``
+    (``attention_common.feedback.PlainCopies``)."""
     max_stamp_jump_s: float = MAX_STAMP_JUMP_S
     """Simulation seconds: an image stamped further than this from the newest observation is
     dropped with a warning (3 such observations in a row that continue each other: the env

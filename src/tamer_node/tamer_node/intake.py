@@ -50,11 +50,12 @@ class FeedbackIntake:
 
         ``source`` is 'stamped' (``stamp`` = the step judged: credited to that step whatever
         ``credit`` says, since it names it), 'plain' (stamped on arrival
-        with the newest observation stamp; a copy, logged as 'duplicate', when it pairs with
-        a stamped or pressed verdict of the same h that came at most ``stamped_active_s``
-        before it) or 'pressed' (as plain, but ``stamp`` is the moment the trainer gave
-        it, in simulation time: the credit window is measured from it instead of from the
-        newest observation). Bad values are logged and counted, never raised. Returns at once.
+        with the newest observation stamp; with ``plain_copies``, a copy, logged as
+        'duplicate', when it pairs with a stamped or pressed verdict of the same h that came at
+        most ``stamped_active_s`` before it) or 'pressed' (as plain, but ``stamp`` is the
+        moment the trainer gave it, in simulation time: the credit window is measured from it
+        instead of from the newest observation). Bad values are logged and counted, never
+        raised. Returns at once.
         """
         arrived = time.monotonic()
         h = float(h)
@@ -63,7 +64,9 @@ class FeedbackIntake:
             status = 'invalid'
         else:
             with self._lock:
-                if source in ('stamped', 'pressed'):
+                if not self.config.plain_copies:
+                    pass  # the trainer sends no copies: every plain feedback is its own
+                elif source in ('stamped', 'pressed'):
                     self._copies.verdict(arrived, h)
                 elif self._copies.is_copy(arrived, h):
                     status = 'duplicate'
