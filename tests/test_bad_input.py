@@ -323,9 +323,14 @@ def test_a_huge_frame_leaves_no_lasting_memory(probe, start_node, tmp_path, node
     for i in range(2):
         observation.publish(image(np.zeros((4000, 4000, 3), np.uint8), T0 + i + 1))
     assert wait_until(lambda: node.log_text().count('size 4000x4000') == 2, REPLY_S)
-    grown = resident_mb(node.process.pid) - before
+
+    def grown():
+        return resident_mb(node.process.pid) - before
+
     # A frame kept costs 46 MB, two 92; the node's own first seconds (torch, the learner
-    # thread) have added up to 30 MB on a loaded CI machine, so the line is one frame.
-    assert grown < FRAME_MB, f'{node_name} grew {grown:.1f} MB'
+    # thread) have added up to 30 MB on a loaded CI machine, so the line is one frame. Lasting:
+    # a frame still on its way out when the drop is logged (46.2 MB once, on a CI machine) is
+    # given a few seconds to be freed; one kept for good never is.
+    assert wait_until(lambda: grown() < FRAME_MB, 5.0), f'{node_name} grew {grown():.1f} MB'
     assert 'XMLPARSER' not in node.log_text()  # the profile loaded whole
     assert node.stop(signal.SIGINT) == 0
