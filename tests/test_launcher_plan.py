@@ -10,8 +10,9 @@ from attention_bringup.gallery import cdr_header_stamp_ns, GalleryCollector
 from attention_bringup.params import (
     dump_params, load_params_file, merge_params, node_params, ParamsFileError, parse_params)
 from attention_bringup.plan import (
-    build_plan, Continuation, DEFAULT_STEPS, FEEDBACK_WAITS, LATE_FEEDBACK_LEARNER,
-    LaunchOptions, parse_options, PRESS_TIMES_CREDIT, REALTIME_RATE_HZ, TEACHING_GREEDY_MARGIN)
+    build_plan, CONSOLE, Continuation, DEFAULT_STEPS, FEEDBACK_WAITS, LATE_FEEDBACK_LEARNER,
+    LaunchOptions, parse_options, PERSON_ASK_BURST, PRESS_TIMES_CREDIT, REALTIME_RATE_HZ,
+    TEACHING_GREEDY_MARGIN)
 from attention_bringup.progress import (
     ALIVE_STEPS, format_bar, parse_value, ProgressTracker, RECENT_ROWS, RECENT_STAMPS)
 from attention_bringup.report import ProgressWriter, read_rows_for_plot
@@ -21,6 +22,7 @@ from feedback_node.judging import TRAINERS
 import pytest
 from saliency_node.saliency import BLUR_RADIUS
 from tamer_node.config import TamerConfig
+from trainer_console.config import ConsoleConfig
 
 BIN = Path('/opt/venv/bin')
 LAUNCH_FILE = (Path(__file__).resolve().parents[1] / 'src' / 'attention_bringup' / 'launch'
@@ -251,12 +253,22 @@ def test_the_learner_asks_the_teacher_one_option_away(tmp_path):
     assert tamer['ask_rate'] == 0.15 and tamer['credit'] == 'window'  # the rest: the window
     assert 'ask_rate' not in _plan(tmp_path, human_like=True).effective['tamer_node']
     assert TamerConfig().ask_rate == 0.0  # never asks unless told (the thesis's learner)
-    for options, problem in (({'synthetic': False}, 'only the synthetic teacher'),
-                             ({'trainer': 'thesis'}, 'only the synthetic teacher'),
+    for options, problem in (({'synthetic': False}, 'add --console'),
+                             ({'trainer': 'thesis'}, 'only the teacher answers'),
                              ({'ask': 1.5}, 'in \\[0, 1\\]')):
         with pytest.raises(ValueError, match=problem):
             _plan(tmp_path, **dict({'ask': 0.15}, **options))
     assert parse_options(['--human-like', '--ask', '0.2']).ask == 0.2
+    assert 'ask_burst' not in tamer  # the teacher answers a burst at once
+
+
+def test_a_person_answers_the_learners_questions_at_the_console(tmp_path):
+    plan = _plan(tmp_path, synthetic=False, console=True, ask=0.02)
+    tamer = plan.effective['tamer_node']
+    assert (tamer['ask_rate'], tamer['ask_burst']) == (0.02, PERSON_ASK_BURST) == (0.02, 1.0)
+    console = next(command for command in plan.commands if command.name == CONSOLE)
+    assert not any('answer_questions' in arg for arg in console.argv)  # its default: shown
+    assert ConsoleConfig().answer_questions
 
 
 def test_the_learner_knows_plain_copies_only_when_the_trainer_sends_them(tmp_path):

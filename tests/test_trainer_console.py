@@ -438,3 +438,73 @@ def test_a_receipt_names_the_publisher_its_press_went_out_on():
     assert state.on_receipt('feedback', 1, t, source='plain') is None
     assert state.on_receipt('feedback', 1, t, source='pressed').value == 1.0
     assert state.confirmed['feedback'] == 2
+
+
+@pytest.mark.topics
+@needs_chromium
+def test_a_person_answers_the_learners_questions_on_the_frame_asked(probe, start_node, tmp_path):
+    """A question pauses the env and puts the asked frame on screen; a press answers that step."""
+    run_dir = tmp_path / 'run'
+    statuses = probe.subscribe(DiagnosticArray, topics.ENV_STATUS, qos.STEP_DATA)
+    questions = probe.subscribe(Vector3Stamped, topics.QUESTION, qos.HUMAN)
+    credits = probe.subscribe(DiagnosticArray, topics.FEEDBACK_CREDIT, qos.HUMAN)
+    # Unsure of every step (gaps are at most 2): a question every other step, one at a time.
+    tamer = start_node('tamer_node', {'run_dir': str(run_dir), 'ask_rate': 0.5,
+                                      'ask_margin': 3.0, 'ask_burst': 1.0})
+    port = free_port()
+    console = start_node('trainer_console', {'port': port})
+    assert console.wait_for_log('trainer console at', STARTUP_S), console.log_text()[-2000:]
+    env = start_node('env_node', {'rate_hz': 15.0, 'warmup_steps': 0,
+                                  'wait_observation_subscribers': 2})
+    # (The first question, on the second step, may pause the env before a third.)
+    assert statuses.wait_count(1, STARTUP_S), env.log_text()[-2000:]
+    asked_on_screen = """(() => { const q = document.getElementById('question');
+      return !q.hidden && q.dataset.stamp === window.frameStamp
+        && document.getElementById('h_panel').dataset.stamp === q.dataset.stamp
+        ? q.dataset.stamp : null; })()"""
+
+    async def next_question(page, after):
+        assert await page.wait_for(f'{asked_on_screen} !== null && {asked_on_screen} !== '
+                                   f"'{after}'", 30.0), (
+            await page.evaluate('document.body.innerText'))
+        stamp = await page.evaluate(asked_on_screen)
+        taken = await page.evaluate("document.getElementById('question_taken').textContent")
+        return stamp, taken, await page.evaluate("document.getElementById('taken')"
+                                                 '.textContent')
+
+    async def session():
+        async with Browser(f'http://127.0.0.1:{port}/', tmp_path / 'chromium') as page:
+            assert await page.wait_for("document.getElementById('connection').textContent"
+                                       " === 'connected'")
+            shown = []
+            for key in ('+', '-', '0'):  # yes, no, skip
+                stamp, taken, h_taken = await next_question(page, shown[-1][0] if shown else '')
+                count = len(statuses.snapshot())
+                paused = not statuses.wait_count(count + 3, 1.0)  # the env waits for the answer
+                shown.append((stamp, taken, h_taken, paused))
+                await page.press(key)
+            assert await page.wait_for("document.getElementById('question_counts').textContent"
+                                       ".includes('2 answered, 1 skipped')")
+            return shown, await page.evaluate(
+                "document.getElementById('question_counts').textContent")
+
+    shown, counts = asyncio.run(session())
+    asked = {str(stamp_to_ns(m.header.stamp)): m.vector for m in questions.snapshot()}
+    names = load_task('montezuma').action_names
+    for stamp, taken, h_taken, paused in shown:
+        assert stamp in asked and taken == h_taken == names[int(asked[stamp].x)], (stamp, asked)
+        assert paused, 'the env stepped on while a question stood on screen'
+    assert int(shown[0][0]) < int(shown[1][0]) < int(shown[2][0])  # resumed in between
+    assert '2 answered, 1 skipped' in counts, counts
+    # The two answers: stamped with the steps asked, each credited to that step alone.
+    assert wait_until(lambda: len([line for line in log_lines(run_dir)
+                                   if line.get('source') == 'stamped']) >= 2, 10.0)
+    answers = [line for line in log_lines(run_dir) if line['kind'] == 'feedback']
+    assert [(line['h'], line['source'], str(line['stamp_ns'])) for line in answers] == [
+        (1.0, 'stamped', shown[0][0]), (-1.0, 'stamped', shown[1][0])], answers
+    for line in answers:
+        assert credits.wait_for(lambda m: credit_of(m, line['seq']), 10.0)
+        assert credit_of(credits.snapshot(), line['seq']) == (
+            {line['stamp_ns']: 1.0}, line['h'], 'step')
+    assert console.wait_for_log('the learner asks about step', 5.0)
+    assert tamer.alive() and console.stop(signal.SIGINT) == 0, console.log_text()[-3000:]

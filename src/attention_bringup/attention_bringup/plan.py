@@ -34,6 +34,9 @@ STALL_TIMEOUT_S = 120.0
 
 CONSOLE = 'trainer_console'
 CONSOLE_PORT = 8080
+PERSON_ASK_BURST = 1.0
+"""tamer_node ``ask_burst`` when a person answers (``--ask`` with the console): each question
+pauses the env, so no saved-up questions come one after another."""
 FOXGLOVE = 'graph_viewer'
 """The Foxglove bridge's executable and node name (package graph_viewer)."""
 RECORDER = 'session_recorder'
@@ -147,7 +150,8 @@ class LaunchOptions:
     (``feedback_pressed``), credited from then (``PRESS_TIMES_CREDIT``)."""
     ask: float = 0.0
     """The learner asks the teacher about the steps it is least sure of, at most this many
-    questions per step (tamer_node ``ask_rate``); the teacher answers stamped. 0: never."""
+    questions per step (tamer_node ``ask_rate``); the teacher answers stamped. 0: never. With a
+    person (``synthetic`` false) the console shows them, one at a time (``ask_burst`` 1)."""
     knobs: List[str] = field(default_factory=list)
     """With ``human_like``: ``NAME=VALUE`` changes of the named setting's knobs (``HumanLike``:
     for example ``feedback_probability=1``, a person who judges every move)."""
@@ -273,7 +277,9 @@ def argument_parser() -> argparse.ArgumentParser:
                         help='the learner asks the teacher about the steps where it is least '
                              "sure (H's two best actions within ask_margin), at most RATE "
                              'questions a step; the teacher answers each stamped with its step '
-                             '(tamer_node ask_rate; docs/teaching.md)')
+                             '(tamer_node ask_rate; docs/teaching.md); with --no-synthetic '
+                             '--console a person answers them in the console, the env paused '
+                             'at each (try 0.02: one every 3 s at 15 Hz)')
     parser.add_argument('--knob', dest='knobs', action='append', default=[],
                         metavar='NAME=VALUE',
                         help='with --human-like: change one knob of its setting (repeatable; '
@@ -432,6 +438,8 @@ def launcher_overrides(options: LaunchOptions, seed: int, run_dir: Path,
         overrides['tamer_node'].update(LATE_FEEDBACK_LEARNER)
     if options.ask:
         overrides['tamer_node']['ask_rate'] = float(options.ask)
+        if not options.synthetic:  # a person: one question at a time, never a burst of pauses
+            overrides['tamer_node']['ask_burst'] = PERSON_ASK_BURST
     if node_params(files_params, 'feedback_node').get('plain_copies'):
         overrides['tamer_node']['plain_copies'] = True  # the learner knows them for copies
     if options.records:  # the env and the trainer wait for the recorder too: no step unheard
@@ -509,9 +517,12 @@ def build_plan(options: LaunchOptions, bin_dir: Path, cwd: Path,
     if options.press_times and not options.human_like:
         raise ValueError('--press-times is how the human-like teacher gives its late verdicts: '
                          'add --human-like')
-    if options.ask and (options.trainer != 'teacher' or not options.synthetic):
-        raise ValueError('--ask: only the synthetic teacher answers questions (--trainer '
-                         'teacher); the console does not show them yet')
+    if options.ask and options.synthetic and options.trainer != 'teacher':
+        raise ValueError('--ask: of the synthetic trainers only the teacher answers questions '
+                         '(--trainer teacher)')
+    if options.ask and not options.synthetic and not options.console:
+        raise ValueError('--ask with a person: add --console, where the questions are shown '
+                         'and answered')
     if not 0.0 <= options.ask <= 1.0:
         raise ValueError(f'--ask is questions per step, in [0, 1]: got {options.ask}')
     if continuation.steps_done >= options.steps:

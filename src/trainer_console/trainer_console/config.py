@@ -35,6 +35,11 @@ class ConsoleConfig:
     and action the page shows: it goes on ``feedback_stamped`` stamped with that frame, and
     the learner credits exactly that step. false: plain on ``feedback`` (the learner's window
     then falls on the steps 0.2 s and more before the paused frame, never on it)."""
+    answer_questions: bool = True
+    """true: the learner's questions (tamer_node ``ask_rate``, topic ``question``) are shown one
+    at a time: the env is paused, the asked frame is put on screen with its H, and a press
+    answers it on ``feedback_stamped``, stamped with that step (``0`` or Escape skips it); the
+    env resumes after the last. false: questions are counted, not shown."""
     task: str = 'montezuma'
     """The task taught: what utterances can name (its template manifest) and its milestones
     (Room 1's critical positions, DoorKey's sub-goals)."""

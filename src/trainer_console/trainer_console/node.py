@@ -9,7 +9,9 @@ person: ``learner_view.py``); publishes each key press on ``feedback_pressed``
 ``feedback``, std_msgs/Float32, with ``press_times`` false), or while the env is paused on
 ``feedback_stamped`` (Vector3Stamped: h and the frame on screen, the step judged), and words on
 ``utterance`` (std_msgs/String), the very topic ``ros2 topic pub`` uses, sets env_node's
-``paused`` and, while paused, steps it once at a time (its ``~/step`` service).
+``paused`` and, while paused, steps it once at a time (its ``~/step`` service). The learner's
+``question``s (tamer_node ``ask_rate``) are shown one at a time: the env paused, the asked frame
+on screen, a press on it answers on ``feedback_stamped`` (``questions.py``).
 The web server runs on its own thread (``web.ConsoleServer``); rclpy spins in the main one.
 """
 
@@ -42,6 +44,7 @@ from std_srvs.srv import Trigger
 from trainer_console.config import ConsoleConfig
 from trainer_console.matching import subscriber_names, wait_for_all_matched
 from trainer_console.press_time import frame_stamp, press_moment
+from trainer_console.questions import Question, QuestionDesk
 from trainer_console.state import ConsoleState
 from trainer_console.web import ConsoleServer, Frames
 
@@ -69,6 +72,11 @@ class ConsoleNode(Closing, Node):
             milestone_of=lambda values: task.milestone_of(values, DEFAULT_RADIUS),
             milestones=task.milestones, judge_paused_frame=self.config.judge_paused_frame)
         self.frames = Frames()
+        self.action_names = tuple(task.action_names)
+        self.questions = QuestionDesk(show=self.config.answer_questions)
+        self._question_paused = False  # the console paused the env for a question
+        self._person_paused = False  # the person paused it (the button)
+        self._pause_lock = threading.Lock()  # (questions settle on rclpy's and the web's threads)
         self._encoded_at = {'frame': 0.0, 'saliency': 0.0}
         self._publish_lock = threading.Lock()  # publish and its sequence number together
         self._published = dict.fromkeys(SOURCES, 0)
@@ -77,7 +85,7 @@ class ConsoleNode(Closing, Node):
                 (topics.FEEDBACK, Float32), (topics.FEEDBACK_PRESSED, Vector3Stamped),
                 (topics.FEEDBACK_STAMPED, Vector3Stamped), (topics.UTTERANCE, String))}
         self.counts = {'timed_presses': 0, 'plain_presses': 0, 'frame_presses': 0,
-                       'unreadable_timings': 0}
+                       'unreadable_timings': 0, 'bad_questions': 0}
         self.create_subscription(Image, topics.OBSERVATION,
                                  lambda msg: self._on_image('frame', msg), qos.FRAMES)
         self.create_subscription(Image, topics.SALIENCY,
@@ -95,6 +103,7 @@ class ConsoleNode(Closing, Node):
                                  qos.ACTION_VALUES)
         self.create_subscription(DiagnosticArray, topics.FEEDBACK_CREDIT, self._on_credit,
                                  qos.HUMAN)
+        self.create_subscription(Vector3Stamped, topics.QUESTION, self._on_question, qos.HUMAN)
         self._env_parameters = AsyncParameterClient(self, self.config.env_node)
         self._env_step = self.create_client(Trigger, f'{self.config.env_node}/step')
         self.create_timer(1.0, self._look_for_listeners)
@@ -102,7 +111,7 @@ class ConsoleNode(Closing, Node):
         if not self.config.loopback:
             token = self.config.token or secrets.token_urlsafe(16)
         self.server = ConsoleServer(self.config.host, self.config.port, self.frames,
-                                    self.state.snapshot, self.on_command,
+                                    self.snapshot, self.on_command,
                                     self.config.frame_rate_hz, token,
                                     log=self.get_logger().warning,
                                     view=self.state.learner.view)
@@ -116,23 +125,78 @@ class ConsoleNode(Closing, Node):
 
     # What the console hears.
     def _on_image(self, kind: str, msg: Image) -> None:
-        now = time.monotonic()
-        if now - self._encoded_at[kind] < 0.5 / self.config.frame_rate_hz:
-            return  # (half the period: a frame a little early is still shown at the env's rate)
         if msg.encoding != 'rgb8' or msg.height * msg.width > MAX_PIXELS:
             self.get_logger().warning(f'{kind} not shown: {msg.encoding} {msg.width}x'
                                       f'{msg.height}', throttle_duration_sec=10.0)
             return
+        stamp = stamp_to_ns(msg.header.stamp)
+        if kind == 'frame' and self.questions.show:  # held: a question may ask about it
+            self._settle(self.questions.on_frame(stamp, msg, len(msg.data)))
+            if self.questions.current is not None:
+                return  # the asked frame stands on screen
+        now = time.monotonic()
+        if now - self._encoded_at[kind] < 0.5 / self.config.frame_rate_hz:
+            return  # (half the period: a frame a little early is still shown at the env's rate)
+        self._encoded_at[kind] = now
+        self._show_image(kind, msg, stamp)
+
+    def _show_image(self, kind: str, msg: Image, stamp: int) -> None:
         try:
             rgb = image_to_numpy(msg)
         except ImageFormatError as error:
             self.get_logger().warning(f'{kind} not shown: {error}', throttle_duration_sec=10.0)
             return
-        self._encoded_at[kind] = now
         ok, jpeg = cv2.imencode('.jpg', cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR),
                                 [cv2.IMWRITE_JPEG_QUALITY, self.config.jpeg_quality])
         if ok:
-            self.frames.put(kind, jpeg.tobytes(), stamp_to_ns(msg.header.stamp))
+            self.frames.put(kind, jpeg.tobytes(), stamp)
+
+    # The learner's questions: one on screen at a time, the env paused meanwhile.
+    def _on_question(self, msg: Vector3Stamped) -> None:
+        action, gap = msg.vector.x, msg.vector.y
+        if not (math.isfinite(action) and action == int(action)
+                and 0 <= action < len(self.action_names) and math.isfinite(gap)):
+            self.counts['bad_questions'] += 1
+            self.get_logger().error(f'question ignored: action {action!r} is not one of the '
+                                    f"task's {len(self.action_names)} or gap {gap!r} is not "
+                                    f'finite ({self.counts["bad_questions"]} so far)')
+            return
+        self._settle(self.questions.on_question(Question(
+            stamp_to_ns(msg.header.stamp), int(action), float(gap), time.monotonic())))
+
+    def _settle(self, shown) -> None:
+        """Show a question that went on screen; pause while any is open, resume after."""
+        if shown is not None:
+            self._show_image('frame', self.questions.frame(shown.stamp_ns), shown.stamp_ns)
+            self.get_logger().info(f'the learner asks about step {shown.stamp_ns} (it took '
+                                   f'{self.action_names[shown.action]}, gap {shown.gap:.3f})')
+        with self._pause_lock:
+            is_open = self.questions.is_open()
+            held = self._person_paused or self.state.paused_by_env  # not ours to end
+            if is_open and not held and not self._question_paused:
+                self._question_paused = True
+                self._set_paused_soon(True)
+            elif not is_open and self._question_paused:
+                self._question_paused = False
+                self._set_paused_soon(False)
+
+    def _set_paused_soon(self, paused: bool) -> None:
+        """Set env_node's ``paused`` without waiting (rclpy completes it on the main thread)."""
+        if not self._env_parameters.services_are_ready():
+            self.get_logger().warning(f'{self.config.env_node} does not answer: the question is'
+                                      f' shown, the env not {"paused" if paused else "resumed"}',
+                                      throttle_duration_sec=10.0)
+            return
+
+        def done(future) -> None:
+            result = future.result()
+            if result is not None and result.results[0].successful:
+                self.state.paused = paused
+            else:
+                self.get_logger().warning('the env did not take paused := '
+                                          f'{str(paused).lower()} for a question')
+        self._env_parameters.set_parameters(
+            [Parameter('paused', value=paused)]).add_done_callback(done)
 
     def _on_status(self, msg: DiagnosticArray) -> None:
         try:
@@ -166,6 +230,11 @@ class ConsoleNode(Closing, Node):
 
     def _look_for_listeners(self) -> None:
         self.state.listeners = {kind: self.listeners(kind) for kind in ('feedback', 'utterance')}
+        self._settle(self.questions.tick(time.monotonic()))  # (a frame that never came)
+
+    def snapshot(self) -> dict:
+        """Return the page's state: the console's, and the learner's question on screen."""
+        return dict(self.state.snapshot(), questions=self.questions.snapshot(self.action_names))
 
     # What the person gives (called on the web server's worker threads).
     def on_command(self, command: dict) -> dict:
@@ -188,6 +257,11 @@ class ConsoleNode(Closing, Node):
             return self._pause(kind == 'pause')
         if kind == 'step':
             return self._step()
+        if kind == 'skip':
+            if self.questions.current is None:
+                return {'ok': False, 'error': 'no question on screen'}
+            self._settle(self.questions.close('skipped', now=time.monotonic()))
+            return {'ok': True}
         return {'ok': False, 'error': f'unknown command {kind!r}'}
 
     def listeners(self, kind: str) -> list:
@@ -198,7 +272,15 @@ class ConsoleNode(Closing, Node):
                                 else topics.FEEDBACK)
 
     def _give_feedback(self, h: float, command: dict) -> dict:
-        """Publish a key press: on the paused frame, or with the moment it was given."""
+        """Publish a key press: an answer, on the paused frame, or with its moment."""
+        question = self.questions.current
+        if question is not None and frame_stamp(command.get('frame'))[0] == question.stamp_ns:
+            reply = self._give('feedback', h, _verdict(h, question.stamp_ns),
+                               topics.FEEDBACK_STAMPED)  # the answer: that step's verdict
+            if reply['ok']:
+                self._settle(self.questions.close('answered', question.stamp_ns,
+                                                  time.monotonic()))
+            return reply
         pressed_ns, why = None, 'press_times is false'
         if self.config.judge_paused_frame and self.state.paused:
             frame_ns, why = frame_stamp(command.get('frame'))
@@ -247,6 +329,12 @@ class ConsoleNode(Closing, Node):
         if result is None or not result.results[0].successful:
             return {'ok': False, 'error': 'the env did not take it'}
         self.state.paused, self.state.paused_by_env = paused, False
+        with self._pause_lock:
+            self._person_paused = paused
+            if self._question_paused:  # the person holds the pause now, or resumed for good
+                self._question_paused = False
+                if not paused:
+                    self.questions.skip_all()
         self.get_logger().info('paused the env' if paused else 'resumed the env')
         return {'ok': True}
 

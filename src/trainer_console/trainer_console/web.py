@@ -7,8 +7,8 @@ ns as 8 bytes big-endian, then the JPEG) as they come, at most 2 x ``frame_rate_
 as JSON text 4 times a second; and the learner's view of the frame just sent (``view(stamp)``:
 its H, the credit strip) as JSON text ``{"type": "view", ...}`` after a new frame, at most
 ``frame_rate_hz``, and 4 times a second (an H that came after its frame replaces an older one).
-The page sends JSON commands (``feedback``, ``utterance``, ``pause``, ``resume``), handed to
-``on_command``. With a token, every request must carry ``?token=...``.
+The page sends JSON commands (``feedback``, ``utterance``, ``pause``, ``resume``, ``step``,
+``skip``), handed to ``on_command``. With a token, every request must carry ``?token=...``.
 """
 
 import asyncio

@@ -63,12 +63,27 @@ function showState(s) {
   lastSnapshot = s;
   $('furthest').textContent = s.furthest >= 0 ? `${s.furthest} (${(s.milestones || [])[s.furthest] || ''})` : '-';
   $('pause').textContent = s.paused ? 'resume' : 'pause';
-  $('paused_hint').hidden = !s.judges_frame;
+  showQuestion(s.questions);
+  $('paused_hint').hidden = !s.judges_frame || !!s.questions.question;
   $('step_once').disabled = !s.paused;
   $('log').innerHTML = s.last.slice().reverse().map((p) =>
     `<li class="${p.confirmed ? 'good' : 'pending'}">${p.kind} ${escapeHtml(String(p.value))}` +
     `${p.confirmed ? ` logged (${p.status})` : ' waiting'}</li>`).join('');
   plot(s.history);
+}
+
+// The learner's question on screen (the frame shown is the one it asks about), and the counts.
+function showQuestion(q) {
+  const shown = q.question;
+  $('question').hidden = !shown;
+  $('question').dataset.stamp = shown ? shown.stamp : '';
+  $('question_taken').textContent = shown ? shown.taken : '-';
+  $('question_gap').textContent = shown ? fmt(shown.gap, 3) : '-';
+  $('question_waiting').textContent = q.waiting ? `(${q.waiting} more waiting)` : '';
+  const c = q.counts;
+  $('question_counts').textContent = c.heard ? `the learner's questions: ${c.heard} asked, ` +
+    `${c.answered} answered, ${c.skipped} skipped, ${c.lost} lost` +
+    (c.not_shown ? `, ${c.not_shown} not shown (answer_questions is false)` : '') : '';
 }
 
 // What the learner made of the person, for the frame on screen (the server's view of it).
@@ -196,6 +211,9 @@ document.addEventListener('keydown', (event) => {
   if (event.target === $('utterance')) { return; }  // typing words, not judging
   if (event.key === '+' || event.key === 'ArrowUp') { judge(1, event); }
   if (event.key === '-' || event.key === 'ArrowDown') { judge(-1, event); }
+  if ((event.key === '0' || event.key === 'Escape') && !$('question').hidden) {
+    send({type: 'skip'}); event.preventDefault();
+  }
 });
 $('say').addEventListener('submit', (event) => {
   event.preventDefault();
@@ -204,4 +222,5 @@ $('say').addEventListener('submit', (event) => {
 });
 $('pause').addEventListener('click', () => send({type: $('pause').textContent === 'pause' ? 'pause' : 'resume'}));
 $('step_once').addEventListener('click', () => send({type: 'step'}));
+$('skip').addEventListener('click', () => send({type: 'skip'}));
 connect();
