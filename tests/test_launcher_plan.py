@@ -269,6 +269,10 @@ def test_a_person_answers_the_learners_questions_at_the_console(tmp_path):
     console = next(command for command in plan.commands if command.name == CONSOLE)
     assert not any('answer_questions' in arg for arg in console.argv)  # its default: shown
     assert ConsoleConfig().answer_questions
+    # The teacher answers for itself: a console that watches it never pauses the env to ask.
+    watched = _plan(tmp_path, console=True, ask=0.25, human_like=True)
+    console = next(command for command in watched.commands if command.name == CONSOLE)
+    assert 'answer_questions:=false' in console.argv
 
 
 def test_the_learner_knows_plain_copies_only_when_the_trainer_sends_them(tmp_path):

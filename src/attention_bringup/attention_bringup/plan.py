@@ -566,6 +566,8 @@ def build_plan(options: LaunchOptions, bin_dir: Path, cwd: Path,
     if options.console:  # not a node of the study's graph: its own parameters only
         argv = [str(bin_dir / CONSOLE), '--ros-args', '-p', f'port:={int(options.console_port)}',
                 '-p', f'task:={options.task}']
+        if options.synthetic:  # the trainer answers the questions: the console never pauses
+            argv += ['-p', 'answer_questions:=false']
         log = run_dir / node_log(CONSOLE, continuation.session)
         commands.append(NodeCommand(CONSOLE, argv, log))
     if options.foxglove:  # a viewer: not the graph's files, but the user's (a graph_viewer: part)
