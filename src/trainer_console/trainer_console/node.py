@@ -166,8 +166,9 @@ class ConsoleNode(Closing, Node):
 
     def _settle(self, shown) -> None:
         """Show a question that went on screen; pause while any is open, resume after."""
-        if shown is not None:
-            self._show_image('frame', self.questions.frame(shown.stamp_ns), shown.stamp_ns)
+        frame = None if shown is None else self.questions.frame(shown.stamp_ns)
+        if frame is not None:
+            self._show_image('frame', frame, shown.stamp_ns)
             self.get_logger().info(f'the learner asks about step {shown.stamp_ns} (it took '
                                    f'{self.action_names[shown.action]}, gap {shown.gap:.3f})')
         with self._pause_lock:
