@@ -53,6 +53,18 @@ def test_it_asks_at_most_its_rate_and_saves_only_a_burst():
             Asker(rate, margin, burst)
 
 
+def test_a_budget_of_questions_is_spent_at_the_rate_from_the_start_then_it_asks_no_more():
+    asker = Asker(rate=0.25, margin=0.5, burst=1.0, budget=30)
+    unsure = values(0.0, 0.0)
+    asked = [asker.consider(unsure) is not None for _ in range(1000)]
+    assert sum(asked) == 30 and sum(asked[:120]) == 30  # the first 120 steps: 30 at 0.25
+    assert not any(asked[120:]) and asker.asked == 30
+    endless = Asker(rate=0.25, margin=0.5, burst=1.0)
+    assert sum(endless.consider(unsure) is not None for _ in range(1000)) == 250
+    with pytest.raises(ValueError, match='ask_budget'):
+        TamerConfig(ask_rate=0.25, ask_budget=-1).validate()
+
+
 def test_an_agent_that_asks_names_the_steps_it_acted_on(tmp_path):
     config = TamerConfig(ask_rate=0.5, ask_margin=2.5, update_rate_hz=0.0,
                          checkpoint_period_s=0.0, pace_updates=0.0)  # always unsure: the rate

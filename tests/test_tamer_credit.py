@@ -496,3 +496,43 @@ def test_the_ring_takes_all_its_memory_when_made_so_a_long_run_stays_flat():
     size_kb = (ring.states.nbytes + ring.companions.nbytes) / 1024
     assert taken_kb >= 0.9 * size_kb, (taken_kb, size_kb)
     assert not ring.states.any() and len(ring) == 0
+
+
+# Answers kept: step-credited samples in a ring of their own (kept_per_batch).
+def batches_after_a_flood(run: Path, **changes):
+    """One stamped +1, then plain window verdicts that fill the main ring many times over."""
+    frames = np.random.default_rng(3).integers(0, 256, (30, 210, 160, 3), np.uint8)
+    config = TamerConfig(run_dir=str(run), credit='window', pace_updates=0.0,
+                         checkpoint_period_s=0.0, update_rate_hz=0.0, buffer_capacity=40,
+                         batch_size=16, window_min_s=0.2, window_max_s=4.0, **changes)
+    agent = TamerAgent(config, run, encoder=Encoder())
+    agent.start()
+    try:
+        for i in range(30):
+            agent.on_observation((i + 1) * NS_PER_S // 15, frames[i])
+        for step in range(10, 15):  # answers about steps 10-14
+            agent.on_feedback(1.0, 'stamped', step * NS_PER_S // 15)
+        for _ in range(20):  # each credited to the whole 2 s of steps: the ring holds 1-2
+            agent.on_feedback(-1.0, 'plain')
+        deadline = time.monotonic() + 10.0
+        while agent.worker.applied_seq < 25 and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert agent.worker.applied_seq == 25
+        batches = [agent.worker._minibatch() for _ in range(50)]
+        return batches, agent.buffer.samples()
+    finally:
+        agent.close()
+
+
+def test_an_answer_is_rehearsed_in_every_minibatch_after_the_window_floods_the_ring(tmp_path):
+    batches, ring = batches_after_a_flood(tmp_path / 'kept', kept_per_batch=4)
+    assert not any(s.h > 0 for s in ring)  # pushed out of the main ring...
+    for batch in batches:  # ...yet 4 of each 16 rows are answers kept (+1, full weight)
+        assert len(batch.h) == 16 and (batch.h > 0).sum() == 4
+        assert batch.weights[batch.h > 0].tolist() == [1.0] * 4
+    assert len({row.tolist() for batch in batches  # every one of the five drawn in turn
+                for row in batch.states[batch.h > 0].sum(1)}) == 5
+    batches, ring = batches_after_a_flood(tmp_path / 'one_ring')
+    assert not any((batch.h > 0).any() for batch in batches)  # one ring: it is gone
+    with pytest.raises(ValueError, match='kept_per_batch'):
+        TamerConfig(kept_per_batch=4, credit_loss='mixture').validate()

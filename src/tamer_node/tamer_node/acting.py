@@ -170,7 +170,8 @@ class ActingPath:
         self.revisits = (Revisits(config.revisit_penalty, config.revisit_steps, task.num_actions)
                          if config.revisit_penalty > 0.0 else None)
         """Actions taken lately in each exact state, counted against them (None: off)."""
-        self.asker = (Asker(config.ask_rate, config.ask_margin, config.ask_burst)
+        self.asker = (Asker(config.ask_rate, config.ask_margin, config.ask_burst,
+                            config.ask_budget)
                       if config.ask_rate > 0.0 else None)
         self.questions: 'collections.deque[Tuple[int, int, float]]' = collections.deque(
             maxlen=64)

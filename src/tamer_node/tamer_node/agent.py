@@ -21,6 +21,7 @@ hands over through one point.
 """
 
 import collections
+import functools
 import math
 from pathlib import Path
 import sys
@@ -33,7 +34,7 @@ import cv2
 import numpy as np
 # BadInput is raised by the acting path; node.py imports it from here.
 from tamer_node.acting import ActingModel, ActingPath, BadInput, SnapshotSlot  # noqa: F401
-from tamer_node.buffer import FeedbackBuffer
+from tamer_node.buffer import FeedbackBuffer, KEPT_CAPACITY
 from tamer_node.checkpointing import next_session, read_initial_model, read_run
 from tamer_node.config import TamerConfig
 from tamer_node.events import AGENT_COUNTERS
@@ -117,10 +118,11 @@ class TamerAgent:
         self.slot = SnapshotSlot()
         # A frozen encoder: the buffer holds each image's features (computed once, by the
         # actor for the image it acts on), so an update runs the small head only.
-        self.buffer = (FeedbackBuffer(config.buffer_capacity,
-                                      (FEATURE_SIZE * model.streams + model.text_size,),
-                                      np.float32)
-                       if model.freeze_encoder else FeedbackBuffer(config.buffer_capacity))
+        ring = (functools.partial(FeedbackBuffer, item_shape=(
+            FEATURE_SIZE * model.streams + model.text_size,), dtype=np.float32)
+            if model.freeze_encoder else FeedbackBuffer)
+        self.buffer = ring(config.buffer_capacity)
+        kept = ring(KEPT_CAPACITY) if config.kept_per_batch else None  # step credit's own
         self.history = StepHistory(config.history_steps)
         steps_dir = self.run_dir / STEPS_DIR
         self.journal = StepJournal(steps_dir, StepJournal.last_segment(steps_dir) + 1)
@@ -136,7 +138,7 @@ class TamerAgent:
                                 config.buffer_capacity) if config.verdict_memory > 0 else None)
         self.worker = LearnerWorker(config, self.learner, self.buffer, self.history, self.slot,
                                     self.journal, self.checkpoint_disk, self.run_dir, self._log,
-                                    memory)
+                                    memory, kept)
         # Every key exists from the start, so readers never see the dict change size.
         self.counters = collections.Counter(dict.fromkeys(AGENT_COUNTERS, 0))
         self.acting = ActingPath(config, self.actor, self.slot, self.history, self.journal,

@@ -77,6 +77,15 @@ def collate(samples: List[Sample]) -> Batch:
     )
 
 
+def concatenate(first: Batch, second: Batch) -> Batch:
+    """Return the rows of two batches as one (``groups`` dropped: rows independent)."""
+    return Batch(*(torch.cat([a, b]) for a, b in zip(first[:-1], second[:-1])), groups=None)
+
+
+KEPT_CAPACITY = 5000
+"""Step-credited samples kept in a ring of their own (``kept_per_batch``): more answers than a
+person gives in a session (the teacher's 0.25 questions a step: about 1,600 in 10,000 steps)."""
+
 # Per-sample columns of the ring (besides the two images).
 _COLUMNS = {'has_companion': np.bool_, 'actions': np.int64, 'h': np.float32,
             'weights': np.float32, 'stamps': np.int64, 'seqs': np.int64,

@@ -83,10 +83,18 @@ class TamerConfig:
     just left, the agent tries another action, so a loop opens). 0: H alone (the thesis's)."""
     revisit_steps: int = 100
     """The acted steps ``revisit_penalty`` remembers (DoorKey: one episode's length)."""
+    kept_per_batch: int = 0
+    """Rows of each minibatch drawn from a ring of their own that holds only step-credited
+    samples (stamped verdicts, answers to questions; ``KEPT_CAPACITY`` of them): a window's many
+    rows push them out of the main ring within a few thousand steps, and this keeps every one
+    rehearsed. 0: one ring (the thesis's). Not with the ``mixture`` credit loss."""
     ask_rate: float = 0.0
     """Questions per acted step, at most, on average (questions.py): the agent asks the trainer
     (topic ``question``) about a step where H's best action is less than ``ask_margin`` ahead
     of the next; the answer comes stamped with that step. 0: never asks (the thesis's)."""
+    ask_budget: int = 0
+    """Questions in all, at most, this session (0: no end): the same questions as a lower
+    rate, asked at ``ask_rate`` from the start, while the agent knows least."""
     ask_margin: float = 0.5
     """Below this gap between H's two best actions (within [-1, 1]) the agent is unsure."""
     ask_burst: float = 5.0
@@ -233,6 +241,9 @@ class TamerConfig:
                 f'credit_loss must be one of {CREDIT_LOSSES}, got {self.credit_loss!r}')
         if self.sync not in SYNC_MODES:
             raise ValueError(f'sync must be one of {SYNC_MODES}, got {self.sync!r}')
+        if self.kept_per_batch and self.credit_loss != 'each':
+            raise ValueError('kept_per_batch draws single rows: it needs credit_loss each, got '
+                             f'{self.credit_loss!r}')
         if self.update_clock not in UPDATE_CLOCKS:
             raise ValueError(
                 f'update_clock must be one of {UPDATE_CLOCKS}, got {self.update_clock!r}')
@@ -281,8 +292,10 @@ class TamerConfig:
             'revisit_penalty': self.revisit_penalty >= 0.0,
             'revisit_steps': self.revisit_steps >= 1,
             'ask_rate': 0.0 <= self.ask_rate <= 1.0,
+            'kept_per_batch': 0 <= self.kept_per_batch < self.batch_size,
             'ask_margin': self.ask_margin > 0.0,
             'ask_burst': self.ask_burst >= 1.0,
+            'ask_budget': self.ask_budget >= 0,
             'decision_period_s': self.decision_period_s >= 0.0,
             'decision_switch_margin': self.decision_switch_margin >= 0.0,
             'credit_noise': 0.0 <= self.credit_noise < 0.5,

@@ -29,7 +29,7 @@ from attention_common.log_budget import LogBudget
 from attention_common.priority import lower_thread_priority as lower_thread
 import numpy as np
 from tamer_node.acting import SnapshotSlot
-from tamer_node.buffer import collate, FeedbackBuffer, Sample
+from tamer_node.buffer import collate, concatenate, FeedbackBuffer, Sample
 from tamer_node.checkpointing import CheckpointClock, Checkpoints, journal_histories
 from tamer_node.config import TamerConfig
 from tamer_node.delay_fit import DelayFit
@@ -48,9 +48,12 @@ class LearnerWorker(threading.Thread):
     def __init__(self, config: TamerConfig, learner: Learner, buffer: FeedbackBuffer,
                  history: StepHistory, slot: SnapshotSlot, journal: StepJournal,
                  disk: DiskWriter, run_dir: Path, log: Callable[[str, str], None],
-                 memory: Optional[VerdictMemory] = None):
+                 memory: Optional[VerdictMemory] = None,
+                 kept: Optional[FeedbackBuffer] = None):
         super().__init__(name='tamer-learner', daemon=True)
         self.config = config
+        self.kept = kept
+        """Step-credited samples only, ``kept_per_batch`` rows of each minibatch (None: off)."""
         self.memory = memory
         """The acting path's verdict memory, told of every sample added (None: off)."""
         self.learner = learner
@@ -263,7 +266,11 @@ class LearnerWorker(threading.Thread):
         """``batch_size`` samples, or with the ``mixture`` loss ``batch_size`` whole feedbacks."""
         if self.config.credit_loss == 'mixture':
             return self.buffer.sample_feedback(self.config.batch_size, self._rng)
-        return self.buffer.sample(self.config.batch_size, self._rng)
+        if self.kept is None or not len(self.kept):
+            return self.buffer.sample(self.config.batch_size, self._rng)
+        kept = self.kept.sample(self.config.kept_per_batch, self._rng)
+        rest = self.config.batch_size - len(kept.h)
+        return concatenate(self.buffer.sample(rest, self._rng), kept)
 
     def _wants_companion(self) -> bool:
         """Wait for credited steps' saliency images: for the L2 term, or as part of H's input."""
@@ -281,6 +288,8 @@ class LearnerWorker(threading.Thread):
                 self.delays.observe([paired.delays[s.stamp] for s in paired.samples],
                                     [s.weight / total for s in paired.samples])
         self.buffer.extend(paired.samples)
+        if self.kept is not None and event.credit == 'step':
+            self.kept.extend(paired.samples)
         if self.memory is not None:
             self.memory.add(paired.samples)
         with self._lock:

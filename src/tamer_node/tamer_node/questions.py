@@ -21,7 +21,7 @@ import torch
 class Asker:
     """Decides, for each acted step, whether to ask the trainer about it."""
 
-    def __init__(self, rate: float, margin: float, burst: float = 5.0):
+    def __init__(self, rate: float, margin: float, burst: float = 5.0, budget: int = 0):
         if not 0.0 < rate <= 1.0:
             raise ValueError(f'ask_rate must be in (0, 1], got {rate}')
         if margin <= 0.0 or burst < 1.0:
@@ -29,6 +29,9 @@ class Asker:
         self.rate = float(rate)
         self.margin = float(margin)
         self.burst = float(burst)
+        self.budget = int(budget)
+        """Questions in all (0: no end): asked at ``rate`` until spent."""
+        self.asked = 0
         self._tokens = 0.0
 
     @staticmethod
@@ -42,6 +45,8 @@ class Asker:
 
     def consider(self, values: torch.Tensor) -> Optional[float]:
         """Return the gap when this step is to be asked about, else None (one step acted)."""
+        if self.budget and self.asked >= self.budget:
+            return None
         self._tokens = min(self._tokens + self.rate, self.burst)
         if self._tokens < 1.0 - 1e-9:  # (ten tenths add up to a hair below one)
             return None
@@ -49,6 +54,7 @@ class Asker:
         if gap >= self.margin:
             return None
         self._tokens -= 1.0
+        self.asked += 1
         return gap
 
     def clear(self) -> None:
