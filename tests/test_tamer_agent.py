@@ -398,6 +398,20 @@ def test_a_paced_actor_never_outruns_its_learner(agents, pace_updates):
         assert stats['train/skipped_updates'] > 0 and agent.counters['act/paced'] == 0
 
 
+def test_the_actor_is_paced_from_a_feedback_still_waiting_for_the_disk(agents):
+    """Pacing starts when feedback arrives, not when the disk thread hands it on (CI: 29 lost)."""
+    agent = agents(update_rate_hz=150.0, update_backlog_s=1.0, immediate_update=False,
+                   pace_updates=2.0, pace_max_s=10.0)
+    play(agent, 1)
+    agent.disk.submit(lambda: time.sleep(1.5))  # a busy disk thread (a loaded machine's)
+    agent.on_feedback(1.0, 'stamped', stamp(0))
+    play(agent, 30, first=1)  # 2 s of steps: 300 updates owed, twice the backlog
+    assert processed(agent, 1)
+    assert wait_until(lambda: agent.worker.updates_behind() < 1.0, 30)
+    assert agent.worker.stats()['train/skipped_updates'] == 0
+    assert agent.counters['act/paced'] > 0
+
+
 def test_weight_snapshots_reach_the_acting_copy(agents):
     agent = agents(update_clock='wall')  # minibatches go on while no step comes
     play(agent, 10)

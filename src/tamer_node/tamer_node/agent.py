@@ -144,7 +144,8 @@ class TamerAgent:
         self.acting = ActingPath(config, self.actor, self.slot, self.history, self.journal,
                                  self.worker, self.counters, self._log, memory)
         self.intake = FeedbackIntake(config, self.counters, self.acting, self.journal,
-                                     self.feedback_log, self.disk, self.worker.submit, self._log)
+                                     self.feedback_log, self.disk, self.worker.submit, self._log,
+                                     self.worker.expect)
         # What the node and the benchmarks call: acting.py and intake.py say what each does.
         self.on_observation = self.acting.on_observation
         self.on_saliency = self.acting.on_saliency

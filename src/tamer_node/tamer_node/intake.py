@@ -27,7 +27,8 @@ class FeedbackIntake:
 
     def __init__(self, config: TamerConfig, counters: collections.Counter, steps,
                  journal: StepJournal, feedback_log: FeedbackLog, disk: DiskWriter,
-                 learn: Callable[[FeedbackEvent], None], log: Callable[[str, str], None]):
+                 learn: Callable[[FeedbackEvent], None], log: Callable[[str, str], None],
+                 expect: Callable[[FeedbackEvent], None] = lambda event: None):
         self.config = config
         self.counters = counters
         self._steps = steps  # the acting path: the newest observation stamp and the session
@@ -35,6 +36,7 @@ class FeedbackIntake:
         self.feedback_log = feedback_log
         self.disk = disk
         self._learn = learn
+        self._expect = expect  # told at once: the actor is paced from the arrival on
         self._log = log
         self._lock = threading.Lock()  # seq order == log order == inbox order
         self.seq = 0
@@ -85,6 +87,7 @@ class FeedbackIntake:
             entry = entry_from_event(event, source, time.time())
             entry.update(extra or {})
             # One FIFO queue: feedback reaches the log and then the learner in arrival order.
+            self._expect(event)
             self.disk.submit(lambda: self._log_then_learn(entry, event))
         if status == 'invalid':
             self._log('warn', f'feedback #{event.seq} h={h} is not a finite number within '

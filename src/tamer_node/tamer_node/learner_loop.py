@@ -87,9 +87,18 @@ class LearnerWorker(threading.Thread):
         its credit went to, with their weights), live only (not while resuming)."""
 
     # Producers (any thread).
-    def submit(self, event: FeedbackEvent) -> None:
+    def expect(self, event: FeedbackEvent) -> None:
+        """
+        Note a feedback on its arrival (the intake's thread): updates are owed from then on.
+
+        It may still wait for the disk thread to log it and ``submit`` it; meanwhile the actor
+        is paced already (CI lost 29 owed updates to a busy disk thread before).
+        """
         if self._first_feedback_at is None and event.status == 'ok' and event.now is not None:
             self._first_feedback_at = self._event_time(event)
+
+    def submit(self, event: FeedbackEvent) -> None:
+        self.expect(event)
         self._inbox.append(event)
         self._wake.set()
 
