@@ -303,6 +303,28 @@ def test_nothing_is_sent_into_the_void_when_nobody_listens(start_node):
     assert console.stop(signal.SIGINT) == 0
 
 
+@pytest.mark.topics
+def test_the_console_stops_cleanly_while_a_page_is_still_open(start_node):
+    """A person's tab is open when the run ends: the console closes it and exits 0 (was 1)."""
+    import aiohttp
+    port = free_port()
+    console = start_node('trainer_console', {'port': port})
+    assert console.wait_for_log('trainer console at', STARTUP_S)
+
+    async def stop_while_open():
+        async with aiohttp.ClientSession() as session:
+            async with session.ws_connect(f'http://127.0.0.1:{port}/ws') as socket:
+                assert (await socket.receive(timeout=30)).type == aiohttp.WSMsgType.TEXT
+                stopping = asyncio.ensure_future(asyncio.to_thread(console.stop, signal.SIGINT))
+                while (message := await socket.receive(timeout=10)).type not in (
+                        aiohttp.WSMsgType.CLOSE, aiohttp.WSMsgType.CLOSED):
+                    pass  # (the page reads on while the console stops)
+                return await stopping, message.data
+    code, close_code = asyncio.run(stop_while_open())
+    assert code == 0, console.log_text()[-3000:]
+    assert close_code == aiohttp.WSCloseCode.GOING_AWAY  # told, not dropped
+
+
 def test_the_state_is_valid_json_when_the_learner_has_no_loss_yet():
     state = ConsoleState()
     state.on_metrics({'train/loss': float('nan'), 'train/updates': 0.0,

@@ -18,8 +18,9 @@ from pathlib import Path
 import struct
 import threading
 from typing import Callable, Optional
+import weakref
 
-from aiohttp import web, WSMsgType
+from aiohttp import web, WSCloseCode, WSMsgType
 
 STATIC = Path(__file__).resolve().parent / 'static'
 STATE_PERIOD_S = 0.25
@@ -70,6 +71,7 @@ class ConsoleServer:
         self._thread = threading.Thread(target=self._loop.run_forever, name='console-web',
                                         daemon=True)
         self.clients = 0
+        self._sockets: 'weakref.WeakSet[web.WebSocketResponse]' = weakref.WeakSet()
 
     def start(self) -> int:
         """Bind and serve; return the port (the actual one when 0 was asked)."""
@@ -81,6 +83,7 @@ class ConsoleServer:
         app.add_routes([web.get('/', self._page), web.get('/ws', self._socket),
                         web.static('/static', STATIC)])
         app.middlewares.append(self._check_token)
+        app.on_shutdown.append(self._close_sockets)  # else cleanup waits for every open tab
         self._runner = web.AppRunner(app, access_log=None)
         await self._runner.setup()
         site = web.TCPSite(self._runner, self.host, self.port)
@@ -92,6 +95,10 @@ class ConsoleServer:
             asyncio.run_coroutine_threadsafe(self._runner.cleanup(), self._loop).result(10)
         self._loop.call_soon_threadsafe(self._loop.stop)
         self._thread.join(timeout=10)
+
+    async def _close_sockets(self, app) -> None:
+        for socket in list(self._sockets):
+            await socket.close(code=WSCloseCode.GOING_AWAY, message=b'the console stops')
 
     @web.middleware
     async def _check_token(self, request, handler):
@@ -107,6 +114,7 @@ class ConsoleServer:
     async def _socket(self, request) -> web.WebSocketResponse:
         socket = web.WebSocketResponse(heartbeat=10.0, max_msg_size=64 * 1024)
         await socket.prepare(request)
+        self._sockets.add(socket)
         self.clients += 1
         sender = asyncio.ensure_future(self._send(socket))
         try:
