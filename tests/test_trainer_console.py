@@ -7,6 +7,7 @@ and the steps a press was credited to; pause stops the real-time env.
 """
 
 import asyncio
+import contextlib
 import json
 import os
 import re
@@ -280,24 +281,34 @@ def test_teach_from_a_shell_reaches_the_learner_every_time(start_node, tmp_path)
         'jump over the skull']
 
 
-@pytest.mark.topics
-def test_nothing_is_sent_into_the_void_when_nobody_listens(start_node):
-    """Without a learner a press is refused with a reason, not published and lost."""
-    import asyncio as aio
+def console_alone(start_node):
+    """Start a console with nothing else; return it and a function that opens its websocket."""
     import aiohttp
     port = free_port()
     console = start_node('trainer_console', {'port': port})
     assert console.wait_for_log('trainer console at', STARTUP_S)
 
-    async def press():
+    @contextlib.asynccontextmanager
+    async def page():
         async with aiohttp.ClientSession() as session:
             async with session.ws_connect(f'http://127.0.0.1:{port}/ws') as socket:
-                await socket.send_json({'type': 'feedback', 'h': 1, 'id': 1})
-                while True:
-                    message = await socket.receive_json(timeout=30)
-                    if message.get('type') == 'reply':
-                        return message
-    reply = aio.run(press())
+                yield socket
+    return console, page
+
+
+@pytest.mark.topics
+def test_nothing_is_sent_into_the_void_when_nobody_listens(start_node):
+    """Without a learner a press is refused with a reason, not published and lost."""
+    console, page = console_alone(start_node)
+
+    async def press():
+        async with page() as socket:
+            await socket.send_json({'type': 'feedback', 'h': 1, 'id': 1})
+            while True:
+                message = await socket.receive_json(timeout=30)
+                if message.get('type') == 'reply':
+                    return message
+    reply = asyncio.run(press())
     assert reply['ok'] is False and 'nobody listens to feedback' in reply['error']
     assert 'not sent: nobody subscribes' in console.log_text()
     assert console.stop(signal.SIGINT) == 0
@@ -307,19 +318,16 @@ def test_nothing_is_sent_into_the_void_when_nobody_listens(start_node):
 def test_the_console_stops_cleanly_while_a_page_is_still_open(start_node):
     """A person's tab is open when the run ends: the console closes it and exits 0 (was 1)."""
     import aiohttp
-    port = free_port()
-    console = start_node('trainer_console', {'port': port})
-    assert console.wait_for_log('trainer console at', STARTUP_S)
+    console, page = console_alone(start_node)
 
     async def stop_while_open():
-        async with aiohttp.ClientSession() as session:
-            async with session.ws_connect(f'http://127.0.0.1:{port}/ws') as socket:
-                assert (await socket.receive(timeout=30)).type == aiohttp.WSMsgType.TEXT
-                stopping = asyncio.ensure_future(asyncio.to_thread(console.stop, signal.SIGINT))
-                while (message := await socket.receive(timeout=10)).type not in (
-                        aiohttp.WSMsgType.CLOSE, aiohttp.WSMsgType.CLOSED):
-                    pass  # (the page reads on while the console stops)
-                return await stopping, message.data
+        async with page() as socket:
+            assert (await socket.receive(timeout=30)).type == aiohttp.WSMsgType.TEXT
+            stopping = asyncio.ensure_future(asyncio.to_thread(console.stop, signal.SIGINT))
+            while (message := await socket.receive(timeout=10)).type not in (
+                    aiohttp.WSMsgType.CLOSE, aiohttp.WSMsgType.CLOSED):
+                pass  # (the page reads on while the console stops)
+            return await stopping, message.data
     code, close_code = asyncio.run(stop_while_open())
     assert code == 0, console.log_text()[-3000:]
     assert close_code == aiohttp.WSCloseCode.GOING_AWAY  # told, not dropped
