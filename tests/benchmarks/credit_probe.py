@@ -41,9 +41,6 @@ import time
 import numpy as np
 
 
-ASK_BURST = 5.0  # tamer_node's ask_burst default
-
-
 def run_trial(seed: int, args) -> dict:
     from attention_bringup.plan import HUMAN_LIKE_WINDOW_S
     from attention_common.joy_actions import NUM_ACTIONS
@@ -53,13 +50,17 @@ def run_trial(seed: int, args) -> dict:
     from feedback_node.human_like import HUMAN_LIKE_SETTING
     from feedback_node.judging import TeacherConfig
     from feedback_node.task_teacher import TaskStep, TaskTeacher
+    from tamer_node.config import TamerConfig
     from tamer_node.credit import spans_from_stamps, window_credit
+    from tamer_node.questions import Asker
+    import torch
 
     knobs = vars(HUMAN_LIKE_SETTING) if args.teacher != 'every_step' else {}
     knobs = dict(knobs, **{k: float(v) for k, v in (kv.split('=', 1) for kv in args.knob)})
     teacher = TaskTeacher(RoomOneKnowledge(None), NUM_ACTIONS,
                           TeacherConfig(utterance_interval=-1.0, seed=seed, **knobs))
-    tokens = [0.0]  # --ask: questions saved up
+    asker = (Asker(args.ask, args.ask_margin, TamerConfig().ask_burst)  # tamer_node's
+             if args.ask > 0.0 else None)
     window = (args.window_min, args.window_max) if args.window_max else HUMAN_LIKE_WINDOW_S
     rng = np.random.default_rng(seed)
     values = collections.defaultdict(lambda: np.zeros(NUM_ACTIONS))
@@ -139,12 +140,8 @@ def run_trial(seed: int, args) -> dict:
             action = int(rng.integers(NUM_ACTIONS))
         last = action
         answers = []
-        if args.ask > 0.0:  # tamer_node's Asker: unsure when the two best are close
-            tokens[0] = min(tokens[0] + args.ask, ASK_BURST)
-            top = np.sort(q)[::-1]
-            if tokens[0] >= 1.0 - 1e-9 and top[0] - top[1] < args.ask_margin:
-                tokens[0] -= 1.0
-                answers = teacher.ask(step.sim_time_ns)  # answered when judged (marked)
+        if asker is not None and asker.consider(torch.from_numpy(q)) is not None:
+            answers = teacher.ask(step.sim_time_ns)  # answered when judged (marked)
         acted[step.sim_time_ns] = (here, action)
         recent.append(step.sim_time_ns)
         newest = step.sim_time_ns  # what a plain verdict is stamped with on arrival

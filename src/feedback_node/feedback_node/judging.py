@@ -149,9 +149,7 @@ class ActionTeacher:
         judged = self._judged.pop(stamp_ns, None)
         if judged is not None:
             return [self._answer(judged)]
-        self._asked[stamp_ns] = None
-        while len(self._asked) > QUESTIONS_HELD:
-            self._asked.popitem(last=False)
+        _hold(self._asked, stamp_ns, None)
         return []
 
     def _answer(self, judgement: Judgement) -> Judgement:
@@ -177,9 +175,7 @@ class ActionTeacher:
             self._answers.append(self._answer(judgement))
             return
         self.scheduler.consider(judgement)
-        self._judged[last.stamp_ns] = judgement
-        while len(self._judged) > QUESTIONS_HELD:
-            self._judged.popitem(last=False)
+        _hold(self._judged, last.stamp_ns, judgement)
 
     def _decide(self, seen, new_episode: bool) -> Any:
         """Return what the teacher thinks of step ``seen`` (kept until the next step)."""
@@ -192,3 +188,10 @@ class ActionTeacher:
     def _speak(self, seen, decided: Any) -> Optional[Utterance]:
         """Return the utterance said at ``seen``, if one is due (``self.schedule``)."""
         raise NotImplementedError
+
+
+def _hold(held: 'collections.OrderedDict', key, value) -> None:
+    """Put ``key`` in ``held``, forgetting the oldest beyond ``QUESTIONS_HELD``."""
+    held[key] = value
+    while len(held) > QUESTIONS_HELD:
+        held.popitem(last=False)

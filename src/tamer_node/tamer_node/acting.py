@@ -404,7 +404,6 @@ class ActingPath:
 
     def take_questions(self) -> List[Tuple[int, int, float]]:
         """Return and forget the questions not yet taken (stamp, action, gap), oldest first."""
-        taken = []
-        while self.questions:
-            taken.append(self.questions.popleft())
+        taken = list(self.questions)
+        self.questions.clear()
         return taken

@@ -65,12 +65,10 @@ class FeedbackIntake:
         if not math.isfinite(h) or abs(h) > FEEDBACK_RANGE:  # the one range of every node
             status = 'invalid'
         else:
-            with self._lock:
-                if not self.config.plain_copies:
-                    pass  # the trainer sends no copies: every plain feedback is its own
-                elif source in ('stamped', 'pressed'):
+            with self._lock:  # (without plain_copies every plain feedback is its own)
+                if self.config.plain_copies and source in ('stamped', 'pressed'):
                     self._copies.verdict(arrived, h)
-                elif self._copies.is_copy(arrived, h):
+                elif self.config.plain_copies and self._copies.is_copy(arrived, h):
                     status = 'duplicate'
         now = self._steps.now
         if source == 'pressed':  # the window's t: the press, not the newest observation
