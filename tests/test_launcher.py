@@ -403,10 +403,10 @@ def test_a_teacher_far_behind_at_the_end_still_gets_every_judgement_to_the_learn
         teacher_counts['judged'])
 
 
-def _fetch_run(run_dir: Path, condition: str, steps: int) -> dict:
-    """Run Fetch in ``condition`` to its budget; return its summary."""
+def _task_run(run_dir: Path, condition: str, steps: int, task: str = 'fetch') -> dict:
+    """Run ``task`` in ``condition`` to its budget (seed 5); return its summary."""
     result = subprocess.run(
-        [LAUNCHER, '--task', 'fetch', '--condition', condition, '--steps', str(steps),
+        [LAUNCHER, '--task', task, '--condition', condition, '--steps', str(steps),
          '--seed', '5', '--run-dir', str(run_dir), '--quiet'],
         capture_output=True, text=True, timeout=240)
     assert result.returncode == 0, result.stderr[-4000:]
@@ -416,10 +416,14 @@ def _fetch_run(run_dir: Path, condition: str, steps: int) -> dict:
 
 
 @pytest.mark.topics
-def test_language_input_acts_on_each_steps_saliency_image(tmp_path):
-    """--condition language_input (issue 25): H reads the frame and its saliency image."""
+@pytest.mark.parametrize('task', ['fetch', 'doorkey'])
+def test_language_input_acts_on_each_steps_saliency_image(tmp_path, task):
+    """--condition language_input (issue 25): H reads the frame and its saliency image.
+
+    In Fetch the mask is the mission's object; in DoorKey the sub-goal's the teacher names.
+    """
     run_dir, steps = tmp_path / 'run', 120
-    summary = _fetch_run(run_dir, 'language_input', steps)
+    summary = _task_run(run_dir, 'language_input', steps, task)
     params = yaml.safe_load((run_dir / 'params.yaml').read_text())
     assert params['tamer_node']['ros__parameters']['input_image'] == 'both'
     assert params['saliency_node']['ros__parameters']['mode'] == 'mask'
@@ -439,7 +443,7 @@ def test_language_input_acts_on_each_steps_saliency_image(tmp_path):
 def test_the_text_conditioned_peer_reads_each_mission(tmp_path):
     """--condition text_film (issue 25's peer): H reads the words, no saliency image made."""
     run_dir = tmp_path / 'run'
-    summary = _fetch_run(run_dir, 'text_film', 120)
+    summary = _task_run(run_dir, 'text_film', 120)
     assert 'text film' in (run_dir / 'logs' / 'tamer_node.log').read_text()
     assert summary['message_counts'].get('saliency', 0) == 0  # words, not images
     logged = [json.loads(line) for line in

@@ -15,8 +15,12 @@ late verdicts with the step they judge (a diagnostic: attribution perfect). ``--
 ask_rate=R``: the learner asks about steps it is unsure of and the teacher answers them stamped
 (``ActionTeacher.ask``), as over the ``question`` topic.
 
+``--words mask``: the language_input condition (the teacher says the next sub-goal at the start of
+each layout and every ``--utterance-interval`` s, the saliency node's mask of the named objects is
+rendered here for every step, and H reads it beside the frame).
+
 Run: ``.venv/bin/python tests/benchmarks/teach_doorkey_inprocess.py --seeds 100 101 --steps 10000
-[--human-like] [--set hold_steps=1 ...] [--out results.json]``.
+[--human-like] [--words mask] [--set hold_steps=1 ...] [--out results.json]``.
 """
 
 import argparse
@@ -31,7 +35,8 @@ from teach_inprocess import learned_purity, parse_value
 
 def run_trial(seed: int, steps: int, heldout: int, human_like: bool, overrides: dict,
               workdir: Path, knobs: dict = None, stamped_late: bool = False,
-              press_times: bool = False) -> dict:
+              press_times: bool = False, words: str = 'off',
+              utterance_interval: float = 10.0) -> dict:
     from attention_bringup.graph import task_file
     from attention_bringup.params import load_params_file, node_params
     from attention_bringup.plan import human_like_window_s, PRESS_TIMES_CREDIT
@@ -46,8 +51,8 @@ def run_trial(seed: int, steps: int, heldout: int, human_like: bool, overrides: 
 
     share_the_cpu()
     knobs = dict(vars(HUMAN_LIKE_SETTING) if human_like else {}, **(knobs or {}))
-    teacher = TaskTeacher(load_knowledge('doorkey'), 6,
-                          TeacherConfig(utterance_interval=-1.0, seed=seed, **knobs))
+    teacher = TaskTeacher(load_knowledge('doorkey'), 6, TeacherConfig(
+        utterance_interval=utterance_interval if words != 'off' else -1.0, seed=seed, **knobs))
     task_params = node_params(load_params_file(task_file('doorkey')), 'tamer_node')
     task_params.pop('task', None)
     config = {'task': 'doorkey', 'seed': seed, 'alpha': 0.0, 'greedy_margin': 0.1,
@@ -58,6 +63,8 @@ def run_trial(seed: int, steps: int, heldout: int, human_like: bool, overrides: 
         config['window_min_s'], config['window_max_s'] = human_like_window_s(STEP_S)
     if late and press_times:  # as attention_train --human-like --press-times sets it
         config.update(PRESS_TIMES_CREDIT)
+    if words != 'off':  # as the language_input condition sets it
+        config.update(input_image='both', alpha=0.0)
     config.update(overrides)
     run_dir = workdir / f'seed{seed}'
     agent = TamerAgent(TamerConfig(run_dir=str(run_dir), **config), run_dir)
@@ -66,9 +73,14 @@ def run_trial(seed: int, steps: int, heldout: int, human_like: bool, overrides: 
                                       heldout_after=steps - heldout))
     counters = Counters()
 
+    saliency = Saliency(words) if words != 'off' else None
+
     def see(step):
         values = parse_status(status_values(step, counters, False))
-        return teacher.on_step(teacher.see(step.sim_time_ns, values)).feedback
+        said = teacher.on_step(teacher.see(step.sim_time_ns, values))
+        if said.utterance is not None and saliency is not None:
+            saliency.hear(said.utterance.text)
+        return said.feedback
 
     episodes = []  # (held out, solved, sub-goals)
     acted = {}  # stamp -> the agent's action
@@ -79,6 +91,8 @@ def run_trial(seed: int, steps: int, heldout: int, human_like: bool, overrides: 
     due = see(step)
     for _ in range(steps):
         action = agent.on_observation(step.sim_time_ns, step.observation)
+        if saliency is not None:  # the step's saliency image: H acts on both
+            action = agent.on_saliency(step.sim_time_ns, saliency.image(step.observation))
         acted[step.sim_time_ns] = action
         if len(acted) > steps - heldout:
             late_actions[action] += 1
@@ -119,6 +133,31 @@ def run_trial(seed: int, steps: int, heldout: int, human_like: bool, overrides: 
             'wall_s': time.monotonic() - started, **learned}
 
 
+class Saliency:
+    """The saliency node's work for DoorKey in this process: the latest words, grounded."""
+
+    def __init__(self, mode: str):
+        from attention_tasks.doorkey.task import TASK
+        from saliency_node.grounding import Grounder
+        from saliency_node.manifest import load_backdrops, load_manifest, load_template_images
+        from saliency_node.matching import build_objects, method_from_name
+        from saliency_node.saliency import SaliencyConfig, SaliencyMaker
+        manifest = load_manifest(TASK.manifest)
+        self.maker = SaliencyMaker(build_objects(manifest, load_template_images(manifest),
+                                                 load_backdrops(manifest)),
+                                   manifest.search_region, manifest.background,
+                                   method_from_name('TM_CCORR_NORMED'))
+        self.grounder = Grounder.from_manifest(manifest)
+        self.rendering = SaliencyConfig(mode=mode)
+        self.named = []
+
+    def hear(self, text: str) -> None:
+        self.named = self.grounder.ground(text).objects
+
+    def image(self, frame):
+        return self.maker.render(frame, self.maker.observe(frame), self.named, self.rendering)[0]
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split('\n')[1])
     parser.add_argument('--seeds', type=int, nargs='+', default=[100])
@@ -134,6 +173,13 @@ def main(argv=None) -> int:
                         help='a human-like knob of the teacher (repeatable)')
     parser.add_argument('--set', action='append', default=[], metavar='NAME=VALUE',
                         help='a TamerConfig field (repeatable)')
+    parser.add_argument('--words', choices=('off', 'mask', 'language'), default='off',
+                        help='mask: the language_input condition (H reads the mask of the '
+                             'grounded sub-goal beside the frame); language: its first design, '
+                             'the blurred saliency image')
+    parser.add_argument('--utterance-interval', type=float, default=10.0,
+                        help='with --words: seconds of simulation time between sentences '
+                             '(0: every step)')
     parser.add_argument('--what', default='')
     parser.add_argument('--out', type=Path, default=None)
     args = parser.parse_args(argv)
@@ -144,7 +190,7 @@ def main(argv=None) -> int:
         for seed in args.seeds:
             result = run_trial(seed, args.steps, args.heldout, args.human_like, overrides,
                                Path(workdir), knobs, args.stamped_late,
-                               args.press_times)
+                               args.press_times, args.words, args.utterance_interval)
             results.append(result)
             print(json.dumps(result), flush=True)
     held = sum(r['heldout_episodes'] for r in results)
@@ -156,6 +202,8 @@ def main(argv=None) -> int:
                                         'stamped_late': args.stamped_late,
                                         'press_times': args.press_times,
                                         'human_like': args.human_like,
+                                        'words': args.words,
+                                        'utterance_interval': args.utterance_interval,
                                         'results': results}, indent=1))
     return 0
 
