@@ -4,7 +4,7 @@ import csv
 from dataclasses import replace
 
 from attention_bringup.experiment import engine, spec as specs
-from attention_bringup.experiment.plugins.doorkey import heldout_after
+from attention_bringup.experiment.plugins.doorkey import ask_rate, heldout_after
 from attention_bringup.minigrid_study import analysis, report
 from attention_bringup.minigrid_study.measures import (
     episodes_of, read_rows, success_curve, trial_measures)
@@ -94,6 +94,22 @@ def test_analysis_compares_with_vanilla_and_the_report_says_it(tmp_path):
     text = path.read_text()
     assert 'the command' in text and '| language |' in text and 'significant' in text
     assert '![success_curves](success_curves.png)' in text
+
+
+def test_the_protocol_says_when_the_learner_asks(tmp_path):
+    """A spec run with ``--ask RATE`` says so in its protocol; one without does not."""
+    records = {'vanilla': [record('vanilla', s, [[-1, 0, 1, 2]] * 3, 2) for s in range(2)]}
+    said = {}
+    for name in ('doorkey_human_like_asks', 'doorkey'):
+        spec = replace(specs.load(name), seeds=(0, 1), out='out')
+        result = analysis.analyse(records, spec.budget)
+        if ask_rate(spec):  # as the plug-in's analyse records it
+            result['ask_rate'] = ask_rate(spec)
+        path = tmp_path / f'{name}.md'
+        report.write_report(path, result, spec, {}, 'the command', [])
+        said[name] = path.read_text()
+    assert 'at most 0.5 questions a step' in said['doorkey_human_like_asks']
+    assert 'questions a step' not in said['doorkey']
 
 
 def test_the_held_out_part_is_the_end_of_the_budget(tmp_path):

@@ -213,6 +213,9 @@ def write_report(path: Path, result: Mapping, spec, figures: Mapping[str, Path],
            'simulation time late (1 s per step), 10 % of signs wrong; the learner credits it '
            'with its window (0.2-2.5 s). ' if result.get('human_like', True) else
            'on every step, at once, stamped with the step it judges, always right. ')
+        + (f'The learner asks about the steps where its two best actions are within 0.5, at '
+           f'most {result["ask_rate"]:g} questions a step; the teacher answers each about '
+           'its step, stamped (10 % of signs wrong). ' if result.get('ask_rate') else '')
         + 'It says the next sub-goal ("pick up the yellow key", "open the yellow door", '
         '"go to the green square") every 10 s of simulation time (10 steps) and at the start '
         'of every episode in the language conditions, every step in language_every_step.',

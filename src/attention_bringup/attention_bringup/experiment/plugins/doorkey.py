@@ -45,6 +45,12 @@ def human_like(spec: Spec) -> bool:
     return '--human-like' in spec.launcher_args
 
 
+def ask_rate(spec: Spec) -> float:
+    """Return the questions a step the learner may ask (``--ask RATE``; 0: it never asks)."""
+    args = list(spec.launcher_args)
+    return float(args[args.index('--ask') + 1]) if '--ask' in args else 0.0
+
+
 def analyse(spec: Spec, by_arm: Mapping, context: Mapping) -> dict:
     # A trial without measures was interrupted.
     records = {arm.condition: [r for r in by_arm[arm.name] if 'doorkey' in r]
@@ -52,6 +58,8 @@ def analyse(spec: Spec, by_arm: Mapping, context: Mapping) -> dict:
     result = analysis.analyse(records, spec.budget)
     result['chance'] = chance_levels()
     result['human_like'] = human_like(spec)
+    if ask_rate(spec):
+        result['ask_rate'] = ask_rate(spec)
     result['command'] = context.get('command', f'.venv/bin/attention_experiment {spec.name}')
     result['wall_time_s'] = sum(e.get('wall_time_s', 0.0) for e in context['log'])
     return result
