@@ -418,7 +418,8 @@ def _task_run(run_dir: Path, condition: str, steps: int, task: str = 'fetch') ->
 @pytest.mark.topics
 @pytest.mark.parametrize('task', ['fetch', 'doorkey'])
 def test_language_input_acts_on_each_steps_saliency_image(tmp_path, task):
-    """--condition language_input (issue 25): H reads the frame and its saliency image.
+    """
+    --condition language_input (issue 25): H reads the frame and its saliency image.
 
     In Fetch the mask is the mission's object; in DoorKey the sub-goal's the teacher names.
     """
