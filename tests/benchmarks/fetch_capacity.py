@@ -33,21 +33,27 @@ EPISODE_STEPS = 50
 """As the words study's episodes."""
 
 
+def saliency_of(manifest_path):
+    """Return the saliency node's maker and grounder for a task's template manifest."""
+    from saliency_node.grounding import Grounder
+    from saliency_node.manifest import load_backdrops, load_manifest, load_template_images
+    from saliency_node.matching import build_objects, method_from_name
+    from saliency_node.saliency import SaliencyMaker
+    manifest = load_manifest(manifest_path)
+    maker = SaliencyMaker(build_objects(manifest, load_template_images(manifest),
+                                        load_backdrops(manifest)),
+                          manifest.search_region, manifest.background,
+                          method_from_name('TM_CCORR_NORMED'))
+    return maker, Grounder.from_manifest(manifest)
+
+
 class Views:
     """The images each input reads of a step (frame, and the grounded mission's rendering)."""
 
     def __init__(self):
         from attention_tasks.fetch.task import TASK
-        from saliency_node.grounding import Grounder
-        from saliency_node.manifest import load_backdrops, load_manifest, load_template_images
-        from saliency_node.matching import build_objects, method_from_name
-        from saliency_node.saliency import SaliencyConfig, SaliencyMaker
-        manifest = load_manifest(TASK.manifest)
-        self.maker = SaliencyMaker(build_objects(manifest, load_template_images(manifest),
-                                                 load_backdrops(manifest)),
-                                   manifest.search_region, manifest.background,
-                                   method_from_name('TM_CCORR_NORMED'))
-        self.grounder = Grounder.from_manifest(manifest)
+        from saliency_node.saliency import SaliencyConfig
+        self.maker, self.grounder = saliency_of(TASK.manifest)
         self.blur = SaliencyConfig(mode='language')
         self.faded = SaliencyConfig(mode='faded')
 

@@ -30,6 +30,7 @@ import sys
 import tempfile
 import time
 
+from fetch_capacity import saliency_of
 from teach_inprocess import learned_purity, parse_value
 
 
@@ -138,16 +139,8 @@ class Saliency:
 
     def __init__(self, mode: str):
         from attention_tasks.doorkey.task import TASK
-        from saliency_node.grounding import Grounder
-        from saliency_node.manifest import load_backdrops, load_manifest, load_template_images
-        from saliency_node.matching import build_objects, method_from_name
-        from saliency_node.saliency import SaliencyConfig, SaliencyMaker
-        manifest = load_manifest(TASK.manifest)
-        self.maker = SaliencyMaker(build_objects(manifest, load_template_images(manifest),
-                                                 load_backdrops(manifest)),
-                                   manifest.search_region, manifest.background,
-                                   method_from_name('TM_CCORR_NORMED'))
-        self.grounder = Grounder.from_manifest(manifest)
+        from saliency_node.saliency import SaliencyConfig
+        self.maker, self.grounder = saliency_of(TASK.manifest)
         self.rendering = SaliencyConfig(mode=mode)
         self.named = []
 
