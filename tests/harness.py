@@ -4,6 +4,7 @@ Test harness for topic-level tests: real node processes and a probe node that ta
 Every wait has a deadline; nothing here sleeps for a fixed time to let things "settle".
 """
 
+import json
 import os
 from pathlib import Path
 import signal
@@ -19,6 +20,20 @@ from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 
 BIN = Path(sys.executable).parent
+
+
+def read_json(path: Path) -> dict:
+    """Return the JSON file at ``path``."""
+    return json.loads(path.read_text())
+
+
+def progress_rows(run_dir: Path) -> int:
+    """Return the rows a run has written to its ``progress.csv`` so far (0 before the file)."""
+    try:
+        with open(run_dir / 'progress.csv') as progress:
+            return sum(1 for _ in progress) - 1
+    except OSError:
+        return 0
 
 
 def wait_until(predicate: Callable[[], bool], timeout: float, interval: float = 0.01) -> bool:
