@@ -58,8 +58,9 @@ def analyse(spec: Spec, by_arm: Mapping, context: Mapping) -> dict:
     result = analysis.analyse(records, spec.budget)
     result['chance'] = chance_levels()
     result['human_like'] = human_like(spec)
-    if ask_rate(spec):
-        result['ask_rate'] = ask_rate(spec)
+    rate = ask_rate(spec)
+    if rate:  # absent without questions: the earlier reports stay byte-identical
+        result['ask_rate'] = rate
     result['command'] = context.get('command', f'.venv/bin/attention_experiment {spec.name}')
     result['wall_time_s'] = sum(e.get('wall_time_s', 0.0) for e in context['log'])
     return result
