@@ -132,3 +132,23 @@ def test_sentences_name_the_next_subgoal_with_its_colour():
 def test_bad_configs_say_what_is_wrong(config, message):
     with pytest.raises(ValueError, match=message):
         DistractorDoorKeyEnv(config)
+
+
+def test_a_world_made_not_to_render_plays_the_same_without_frames():
+    """Tools that only measure play (the study's chance levels) skip rendering, not the game."""
+    from attention_tasks.doorkey.env import DoorKeyEnv, DoorKeyEnvConfig
+    seen = DoorKeyEnv(DoorKeyEnvConfig(seed=3))
+    blind = DoorKeyEnv(DoorKeyEnvConfig(seed=3), render=False)
+    rng = np.random.default_rng(0)
+    steps = [(seen.reset(), blind.reset())]
+    for _ in range(60):
+        action = int(rng.integers(6))
+        pair = tuple(env.reset() if step.done else env.step(action)
+                     for env, step in zip((seen, blind), steps[-1]))
+        steps.append(pair)
+    assert all(a.state == b.state and a.reward == b.reward and a.done == b.done
+               for a, b in steps)
+    assert steps[-1][0].observation.shape == (112, 112, 3)
+    assert all(b.observation is None for _, b in steps)
+    seen.close()
+    blind.close()

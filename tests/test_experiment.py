@@ -184,6 +184,10 @@ def test_a_spec_extends_another_and_changes_only_what_it_says(tmp_path):
     assert greedy.settings == words.settings and greedy.seeds == words.seeds
     assert greedy.parameters == {'tamer_node': {'explore': 0.0}} and not words.parameters
     assert greedy.out != words.out and greedy.runs_dir != words.runs_dir
+    # Settings are merged name by name: a DoorKey spec keeps its base's held-out fraction.
+    asks, every_step = specs.load('doorkey_human_like_asks'), specs.load('doorkey_every_step')
+    assert asks.settings['heldout_fraction'] == every_step.settings['heldout_fraction']
+    assert 'budget_note' in asks.settings and 'budget_note' not in every_step.settings
     # A spec that extends itself, through another or not, is refused.
     (tmp_path / 'a.yaml').write_text(yaml.safe_dump({'extends': 'b.yaml'}))
     (tmp_path / 'b.yaml').write_text(yaml.safe_dump({'extends': 'a.yaml'}))

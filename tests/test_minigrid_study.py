@@ -2,6 +2,7 @@
 
 import csv
 from dataclasses import replace
+import json
 
 from attention_bringup.experiment import engine, spec as specs
 from attention_bringup.experiment.plugins.doorkey import ask_rate, heldout_after
@@ -10,6 +11,7 @@ from attention_bringup.minigrid_study.measures import (
     episodes_of, read_rows, success_curve, trial_measures)
 from attention_bringup.progress import PROGRESS_COLUMNS
 import pytest
+import yaml
 
 
 def rows_of(episodes, heldout_from=None):
@@ -109,7 +111,30 @@ def test_the_protocol_says_when_the_learner_asks(tmp_path):
         report.write_report(path, result, spec, {}, 'the command', [])
         said[name] = path.read_text()
     assert 'at most 0.5 questions a step' in said['doorkey_human_like_asks']
-    assert 'questions a step' not in said['doorkey']
+    assert 'questions a step' not in said['doorkey'].split('## Later studies')[0]
+
+
+def test_the_protocol_counts_the_comparisons_and_gives_the_specs_reason_for_its_budget(
+        tmp_path):
+    """Holm's adjustment is over as many comparisons as there are; a spec may say its budget."""
+    episodes = [[-1, 0, 1, 2]] * 3
+    said = {}
+    for name, conditions in (('doorkey', ('vanilla', 'language', 'blind_obs')),
+                             ('doorkey_human_like_asks', ('vanilla', 'language_input'))):
+        records = {c: [record(c, s, episodes, 2) for s in range(2)] for c in conditions}
+        spec = replace(specs.load(name), seeds=(0, 1), out='out')
+        path = tmp_path / f'{name}.md'
+        report.write_report(path, analysis.analyse(records, spec.budget), spec, {}, 'the '
+                            'command', [])
+        said[name] = path.read_text()
+    assert "Holm's adjustment over the two comparisons of a measure" in said['doorkey']
+    assert report._tests_text(0) == ''  # one condition: nothing tested
+    assert 'over the one comparison of a measure' in said['doorkey_human_like_asks']
+    assert report.BUDGET_NOTE in said['doorkey']
+    assert report.BUDGET_NOTE not in said['doorkey_human_like_asks']
+    assert 'not tuned for it' in said['doorkey_human_like_asks']
+    assert '**Does language help when the learner reads it?**' in said[
+        'doorkey_human_like_asks']
 
 
 def test_the_held_out_part_is_the_end_of_the_budget(tmp_path):
@@ -128,3 +153,53 @@ def test_the_held_out_part_is_the_end_of_the_budget(tmp_path):
     assert every_trial and all(
         job.launcher_args[-2:] == ('--params-file', str(tmp_path / 'doorkey_study.yaml'))
         for job in every_trial)
+
+
+def test_the_thesis_prediction_is_read_from_the_comparisons_when_a_condition_learned():
+    def row(difference, p_holm):
+        return {'difference': difference, 'p_holm': p_holm}
+
+    none = report.prediction_when_learned({'language': row(0.15, 1.0),
+                                           'language_input': row(1.16, 0.0001)})
+    assert 'Not here' in none and 'did not help' in none and '+0.15' in none
+    assert 'language_input, +1.16' in none
+    assert 'language_input' not in report.prediction_when_learned(
+        {'language': row(0.15, 1.0), 'language_input': row(0.3, 0.2)})
+    assert 'the prediction holds' in report.prediction_when_learned(
+        {'language': row(0.4, 0.01)})
+    assert 'Not here' in report.prediction_when_learned({'language': row(-0.4, 0.01)})
+    assert 'no language condition' in report.prediction_when_learned({})
+
+
+def test_later_studies_are_summed_up_from_their_analysis_with_a_link(tmp_path):
+    """The doorkey report ends with its follow-ups: a link, each condition's pooled held-out."""
+    later = tmp_path / 'later'
+    (later / 'trials').mkdir(parents=True)
+    spec_file = tmp_path / 'later.yaml'
+    spec_file.write_text(yaml.safe_dump({
+        'extends': 'doorkey_human_like_asks', 'name': 'later', 'out': str(later),
+        'report': str(later / 'report.md'), 'runs_dir': str(tmp_path / 'runs')}))
+    records = {'vanilla': [record('vanilla', s, [[-1, 0, 1, 2]] * 3, 2) for s in range(2)]}
+    (later / 'analysis.json').write_text(json.dumps(analysis.analyse(records, 10000)))
+    path = tmp_path / 'docs' / 'results.md'
+    lines = report.follow_ups([{'spec': str(spec_file), 'text': 'a later study'},
+                               {'spec': 'doorkey_every_step', 'text': 'the reference'}], path)
+    assert lines[0] == '## Later studies of this level'
+    assert ('- [a later study](../later/report.md) (`attention_experiment later`): '
+            'vanilla 2/2 = 1.00 (2 trials).') in lines
+    assert any(line.startswith('- [the reference](') for line in lines)
+    assert report.follow_ups([], path) == []
+    # The doorkey study names its follow-ups; a study extending it may name none.
+    assert [f['spec'] for f in specs.load('doorkey').settings['follow_ups']] == [
+        'doorkey_every_step_revisits', 'doorkey_human_like_asks']
+    assert specs.load('doorkey_memory').settings['follow_ups'] == []
+
+
+def test_the_wrappers_spec_keeps_the_settings_it_does_not_set():
+    """``attention_study_minigrid`` sets the held-out fraction, keeps the spec's other settings."""
+    from attention_bringup.minigrid_study import cli
+    spec = cli.spec_of(cli.argument_parser().parse_args(['--heldout-fraction', '0.5']))
+    assert spec.settings['heldout_fraction'] == 0.5
+    assert spec.settings['follow_ups'] == specs.load('doorkey').settings['follow_ups']
+    reference = cli.spec_of(cli.argument_parser().parse_args(['--every-step-teacher']))
+    assert reference.name == 'doorkey_every_step' and 'follow_ups' not in reference.settings

@@ -12,7 +12,6 @@ Exit code: 0 when the budget was trained and every node exited with 0; 1 when a 
 the graph stalled or a node did not stop cleanly; 2 for bad options or files; 130 on Ctrl-C.
 """
 
-import contextlib
 import datetime
 import functools
 import os
@@ -32,9 +31,9 @@ from attention_bringup.plan import (
     build_plan, chosen_domain, CONSOLE, Continuation, FOXGLOVE, LaunchPlan, parse_options,
     RECORDER, resumed_options, save_options)
 from attention_bringup.processes import (
-    cpu_seconds, exit_description, log_tail, node_environ, NodeGroup, resident_memory_kb)
+    cpu_seconds, exit_description, log_tail, node_environ, NodeGroup, resident_memory_kb,
+    run_graph)
 from attention_bringup.progress import format_bar, ProgressTracker
-from attention_common.isolation import reserved_domain
 from attention_common.node_main import unblock_stop_signals
 from attention_common.run_files import (
     CHECKPOINT_DIR, FEEDBACK_LOG, GALLERY_FILE, LEARNING_CURVE_FILE, LOGS_DIR, METRICS_CSV,
@@ -577,24 +576,13 @@ def main(argv: Optional[list] = None) -> int:
     except (ParamsFileError, ValueError) as error:
         sys.stderr.write(f'attention_train: {error}\n')
         return 2
-    missing = [command.argv[0] for command in plan.commands
-               if not os.access(command.argv[0], os.X_OK)]
-    if missing:
-        sys.stderr.write(f'attention_train: node executables not found: {", ".join(missing)} '
-                         '(run make setup)\n')
-        return 2
     try:
         chosen = chosen_domain(plan.options, os.environ)
     except ValueError as error:
         sys.stderr.write(f'attention_train: {error}\n')
         return 2
-    domain = reserved_domain() if chosen is None else contextlib.nullcontext(chosen)
-    with domain as domain_id:
-        try:
-            return Launcher(plan, domain_id).run()
-        except FileExistsError as error:
-            sys.stderr.write(f'attention_train: {error}\n')
-            return 2
+    return run_graph('attention_train', plan.commands, chosen,
+                     lambda domain_id: Launcher(plan, domain_id).run())
 
 
 if __name__ == '__main__':

@@ -8,6 +8,7 @@ final checkpoint). On Linux every node also gets SIGTERM if the launcher dies: a
 launcher's own ROS threads run).
 """
 
+import contextlib
 from dataclasses import dataclass, field
 import os
 from pathlib import Path
@@ -18,7 +19,7 @@ import time
 from typing import Callable, Dict, List, Mapping, Optional, Sequence, Tuple
 
 from attention_bringup.plan import NodeCommand
-from attention_common.isolation import isolated_environ
+from attention_common.isolation import isolated_environ, reserved_domain
 from attention_common.teardown_watchdog import DUMP_HEADER
 
 # argv: <launcher pid> <executable> <args...>. Exits if the launcher is already gone.
@@ -42,6 +43,34 @@ def node_environ(domain_id: int, log_dir: Path) -> dict:
         'ROS_LOG_DIR': str(Path(log_dir) / 'ros'),
     })
     return env
+
+
+def executables_found(prog: str, commands: Sequence[NodeCommand]) -> bool:
+    """Return whether every node executable is there; say which are not."""
+    missing = [command.argv[0] for command in commands if not os.access(command.argv[0], os.X_OK)]
+    if missing:
+        sys.stderr.write(f'{prog}: node executables not found: {", ".join(missing)} '
+                         '(run make setup)\n')
+    return not missing
+
+
+def run_graph(prog: str, commands: Sequence[NodeCommand], chosen: Optional[int],
+              run: Callable[[int], int]) -> int:
+    """
+    Return ``run(domain_id)`` when every node executable is there, in the chosen ROS domain.
+
+    ``chosen`` None: a domain reserved for this run (``attention_common.isolation``). Missing
+    executables, or a run folder that is not empty (``FileExistsError``), are said and give 2.
+    """
+    if not executables_found(prog, commands):
+        return 2
+    domain = reserved_domain() if chosen is None else contextlib.nullcontext(chosen)
+    with domain as domain_id:
+        try:
+            return run(domain_id)
+        except FileExistsError as error:
+            sys.stderr.write(f'{prog}: {error}\n')
+            return 2
 
 
 def dying_with_parent(argv: List[str]) -> List[str]:

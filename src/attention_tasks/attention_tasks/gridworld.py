@@ -68,9 +68,16 @@ class GridWorld(SteppedWorld):
 
     num_actions = NUM_ACTIONS
 
-    def __init__(self, config, level, state_of: Callable[[Any, int, bool], Any]):
-        """``level``: the MiniGrid env; ``state_of(level, layout, heldout)``: a step's state."""
+    def __init__(self, config, level, state_of: Callable[[Any, int, bool], Any],
+                 render: bool = True):
+        """
+        ``level``: the MiniGrid env; ``state_of(level, layout, heldout)``: a step's state.
+
+        ``render`` False: steps carry no frame (``observation`` None), for tools that measure
+        play and never look (rendering is most of a step's time).
+        """
         self.config = config
+        self._render = render
         self._env = level
         self._state_of = state_of
         self._rng = np.random.default_rng(self.config.seed)
@@ -110,7 +117,7 @@ class GridWorld(SteppedWorld):
         return step
 
     def _make_step(self, reward: float, terminated: bool, truncated: bool) -> Step:
-        return Step(observation=observe(self._env),
+        return Step(observation=observe(self._env) if self._render else None,
                     state=self._state_of(self._env, self._layout, self._heldout),
                     reward=reward, terminated=terminated, truncated=truncated,
                     life_lost=False, episode=self._episode, episode_step=self._episode_step,

@@ -31,7 +31,7 @@ class Step(NamedTuple):
     """One environment step (or a reset) as env_node publishes it, in any task."""
 
     observation: Any
-    """RGB frame, ``Task.frame_shape`` + (3,), uint8."""
+    """RGB frame, ``Task.frame_shape`` + (3,), uint8 (None from a world made not to render)."""
     state: Any
     """The task's state: a NamedTuple or frozen dataclass with ``status()`` (env_status)."""
     reward: float

@@ -21,6 +21,15 @@ def num(value: Optional[float], digits: int = 2, missing: str = 'n/a',
     return f'{value:.{digits}f}'
 
 
+COUNT_WORDS = ('no', 'one', 'two', 'three', 'four', 'five', 'six', 'seven', 'eight', 'nine')
+
+
+def counted(n: int, noun: str) -> str:
+    """Return 'five comparisons', 'one comparison', '12 comparisons'."""
+    word = COUNT_WORDS[n] if 0 <= n < len(COUNT_WORDS) else str(n)
+    return f'{word} {noun}' + ('' if n == 1 else 's')
+
+
 def percent(share: Optional[float], digits: int = 0) -> str:
     """Return a share as '42 %' (``digits`` decimals); 'n/a' for None."""
     return 'n/a' if share is None else f'{100 * share:.{digits}f} %'

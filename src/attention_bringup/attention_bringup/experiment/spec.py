@@ -256,7 +256,8 @@ def _extended(path: Path, chain: Tuple[Path, ...] = ()) -> dict:
     Return the fields of the spec in ``path`` with those of the spec it ``extends``.
 
     ``extends`` names a shipped spec or a file (relative to this one). This spec's fields
-    replace the base's, but ``parameters``, merged node by node (this spec's values win).
+    replace the base's, but ``parameters``, merged node by node, and ``settings``, merged name
+    by name (this spec's values win).
     """
     if path.resolve() in chain:
         raise SpecError(f'{path}: extends itself (through {", ".join(map(str, chain))})')
@@ -277,6 +278,9 @@ def _extended(path: Path, chain: Tuple[Path, ...] = ()) -> dict:
             under = below.get(node)
             both = isinstance(under, Mapping) and isinstance(values, Mapping)
             merged['parameters'][node] = {**under, **values} if both else values
+    below, above = base.get('settings'), data.get('settings')
+    if isinstance(below, Mapping) and isinstance(above, Mapping):
+        merged['settings'] = {**below, **above}
     return merged
 
 

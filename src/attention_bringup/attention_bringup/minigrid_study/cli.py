@@ -77,7 +77,8 @@ def spec_of(options: argparse.Namespace) -> specs.Spec:
     arms = [specs.Arm(condition, condition) for condition in dict.fromkeys(options.conditions)]
     return replace(base, arms=tuple(arms), seeds=tuple(range(options.trials)),
                    budget=options.steps, out=options.out, report=options.report,
-                   runs_dir=runs_dir, settings={'heldout_fraction': options.heldout_fraction})
+                   runs_dir=runs_dir,
+                   settings={**base.settings, 'heldout_fraction': options.heldout_fraction})
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:

@@ -139,7 +139,7 @@ def chance_levels(episodes: int = 200, seed: int = 0, max_episode_steps: int = 1
     from attention_tasks.doorkey.expert import next_action
     rng = np.random.default_rng(seed)
     env = DoorKeyEnv(DoorKeyEnvConfig(seed=seed, heldout_after=1,
-                                      max_episode_steps=max_episode_steps))
+                                      max_episode_steps=max_episode_steps), render=False)
     done = []
     step = env.reset()
     step = env.step(int(rng.integers(NUM_ACTIONS)))  # past heldout_after: held-out layouts next
@@ -186,7 +186,7 @@ def judged_good_by_kind(seed: int = 0, steps: int = 3000) -> Dict[str, float]:
     from attention_tasks.doorkey.teaching import KNOWLEDGE
     from env_node.status import Counters, parse_status, status_values
     rng = np.random.default_rng(seed)
-    env = DoorKeyEnv(DoorKeyEnvConfig(seed=seed, max_episode_steps=100))
+    env = DoorKeyEnv(DoorKeyEnvConfig(seed=seed, max_episode_steps=100), render=False)
     good = {'turn': 0, 'forward': 0, 'other': 0}
     total = dict(good)
     step = env.reset()

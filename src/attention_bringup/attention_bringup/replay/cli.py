@@ -18,7 +18,6 @@ Exit code: 0 when every item was sent and both nodes exited cleanly; 1 when a no
 not start; 2 for bad options, bags or files; 130 on Ctrl-C.
 """
 
-import contextlib
 import csv
 import dataclasses
 import datetime
@@ -40,7 +39,8 @@ from attention_bringup.experiment.spec import Arm
 from attention_bringup.graph import THESIS_CONDITIONS
 from attention_bringup.params import ParamsFileError
 from attention_bringup.plan import chosen_domain
-from attention_bringup.processes import node_environ, NodeGroup
+from attention_bringup.processes import (
+    executables_found, node_environ, NodeGroup, run_graph)
 from attention_bringup.replay.output import plot_replay, study_table, summary_lines
 from attention_bringup.replay.plan import (
     build_plan, OPTIONS_FILE, PARAMS_FILE, parse_options, ReplayPlan, STEPS_FILE)
@@ -48,7 +48,6 @@ from attention_bringup.replay.player import (
     feedback_receipt, ReplayPlayer, sleep_until, task_action_of_bytes)
 from attention_bringup.replay.session import Agreement, RECEIPTED, replay_items
 from attention_common import topics
-from attention_common.isolation import reserved_domain
 from attention_common.node_main import unblock_stop_signals
 from attention_common.run_files import LEARNING_CURVE_FILE, LOGS_DIR, REPLAY_LOG, SUMMARY_FILE
 from attention_tasks.task import load_task
@@ -309,10 +308,7 @@ def main(argv: Optional[list] = None) -> int:
     except (ParamsFileError, ValueError, json.JSONDecodeError) as error:
         sys.stderr.write(f'attention_replay: {error}\n')
         return 2
-    missing = [c.argv[0] for c in plan.commands if not os.access(c.argv[0], os.X_OK)]
-    if missing:
-        sys.stderr.write(f'attention_replay: node executables not found: {", ".join(missing)} '
-                         '(run make setup)\n')
+    if not executables_found('attention_replay', plan.commands):
         return 2
     if options.all_conditions or options.conditions:
         if options.parallel > 1 and options.domain is not None:
@@ -320,13 +316,8 @@ def main(argv: Optional[list] = None) -> int:
                              '--parallel\n')
             return 2
         return replay_study(options, plan)  # (each replay reserves its own domain)
-    domain = reserved_domain() if chosen is None else contextlib.nullcontext(chosen)
-    with domain as domain_id:
-        try:
-            return Replay(plan, domain_id).run()
-        except FileExistsError as error:
-            sys.stderr.write(f'attention_replay: {error}\n')
-            return 2
+    return run_graph('attention_replay', plan.commands, chosen,
+                     lambda domain_id: Replay(plan, domain_id).run())
 
 
 if __name__ == '__main__':

@@ -24,9 +24,9 @@ class DoorKeyEnvConfig(DoorKeyConfig, Stepping):
 class DoorKeyEnv(GridWorld):
     """The level, stepped by action index 0..5; call ``reset`` or ``warm_up`` once first."""
 
-    def __init__(self, config: Optional[DoorKeyEnvConfig] = None):
+    def __init__(self, config: Optional[DoorKeyEnvConfig] = None, render: bool = True):
         config = config or DoorKeyEnvConfig()
         config.validate()
         super().__init__(config, DistractorDoorKeyEnv(config, render_mode='rgb_array',
                                                       highlight=False),  # no view cone
-                         state_of)
+                         state_of, render)

@@ -4,7 +4,9 @@ DoorKey with a new layout every episode (``docs/results_minigrid.md``): the plug
 Each trial's DoorKey measures come from its ``progress.csv`` (``minigrid_study.measures``); for
 the last ``heldout_fraction`` of the budget every new episode has a held-out layout (the
 ``heldout_after`` parameter every trial gets). The analysis and the report are
-``minigrid_study.analysis`` and ``minigrid_study.report``.
+``minigrid_study.analysis`` and ``minigrid_study.report``. The spec's ``settings``:
+``heldout_fraction``; optionally ``budget_note`` (the protocol's reason for the budget) and
+``follow_ups`` (later studies of the level, ``{spec, text}`` each, summed up at the end).
 """
 
 from pathlib import Path
