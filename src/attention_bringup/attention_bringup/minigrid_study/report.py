@@ -130,8 +130,7 @@ def discussion(result: Mapping) -> List[str]:
             'steps, and a greedy agent that turns sees the same few cells.')]
     tests = {row['condition']: row for row in result['comparisons'].get('heldout_progress', [])}
     if tests:
-        significant = [c for c, row in tests.items() if row['p_holm'] is not None
-                       and row['p_holm'] < 0.05]
+        significant = [c for c, row in tests.items() if _significant(row)]
         lines += ['', '**Against vanilla** (sub-goals per held-out episode, per trial):', '']
         for condition, row in tests.items():
             verdict = ('significant after Holm' if condition in significant
@@ -207,10 +206,14 @@ def _answer(question: str, named: str, row: Mapping) -> str:
               f'episode (Hedges g {num(row["hedges_g"])}, Holm p {p_value(row["p_holm"])}).')
 
 
+def _significant(row: Mapping) -> bool:
+    """Return whether a comparison with vanilla is significant after Holm."""
+    return row['p_holm'] is not None and row['p_holm'] < 0.05
+
+
 def _helps(row: Optional[Mapping]) -> bool:
     """Return whether a comparison is significant after Holm and in the condition's favour."""
-    return (row is not None and row['p_holm'] is not None and row['p_holm'] < 0.05
-            and row['difference'] > 0)
+    return row is not None and _significant(row) and row['difference'] > 0
 
 
 def prediction_when_learned(tests: Mapping[str, Mapping]) -> str:
@@ -282,8 +285,8 @@ def write_report(path: Path, result: Mapping, spec, figures: Mapping[str, Path],
         'in every condition for a seed).',
         '- **Encoder**: pretrained by `tamer_pretrain --task doorkey` on 2,400 DoorKey frames '
         "along the expert's routes with random detours (layouts of their own), frozen.",
-        '- **Statistics**: per-trial measures; ' + _tests_text(
-            sum(c != BASELINE for c in conditions) if BASELINE in conditions else 0)
+        '- **Statistics**: per-trial measures; '
+        + _tests_text(len(result['comparisons'].get('heldout_progress', ())))
         + 'pooled held-out success with Wilson 95 % intervals.',
         '',
         '## Conditions',
