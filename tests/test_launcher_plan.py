@@ -734,3 +734,25 @@ def test_a_knob_changes_one_part_of_the_human_like_setting_and_the_credit_follow
             _plan(tmp_path, human_like=True, knobs=knobs)
     with pytest.raises(ValueError, match='add --human-like'):
         _plan(tmp_path, knobs=['feedback_probability=1'])
+
+
+# -- acting first (issue 26) ------------------------------------------------------------------
+
+def test_acting_first_idles_every_process_off_the_acting_path(tmp_path):
+    plain = _plan(tmp_path, condition='language', console=True, foxglove=True, record=True)
+    assert not any(command.idle for command in plain.commands)  # off by default
+    idle = {command.name: command.idle for command in _plan(
+        tmp_path, condition='language', console=True, foxglove=True, record=True,
+        acting_first=True).commands}
+    assert idle == {'env_node': False, 'tamer_node': False, 'feedback_node': True,
+                    'saliency_node': True, 'session_recorder': True, CONSOLE: True,
+                    'graph_viewer': True}
+    assert parse_options(['--acting-first']).acting_first
+
+
+@pytest.mark.parametrize('condition', ['blind_obs', 'language_input'])
+def test_acting_first_keeps_saliency_node_when_the_learner_acts_on_its_images(
+        tmp_path, condition):
+    idle = {command.name: command.idle
+            for command in _plan(tmp_path, condition=condition, acting_first=True).commands}
+    assert idle['saliency_node'] is False and idle['feedback_node'] is True

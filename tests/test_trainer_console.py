@@ -486,9 +486,14 @@ def test_a_person_answers_the_learners_questions_on_the_frame_asked(probe, start
     port = free_port()
     console = start_node('trainer_console', {'port': port})
     assert console.wait_for_log('trainer console at', STARTUP_S), console.log_text()[-2000:]
+    # The env steps once this probe's subscription to observations is matched too (a third),
+    # made only after its status subscription is matched: no step goes unheard here. (The
+    # first question, on the second step, may pause the env before a third; under a loaded
+    # suite a slow discovery once missed both steps.)
     env = start_node('env_node', {'rate_hz': 15.0, 'warmup_steps': 0,
-                                  'wait_observation_subscribers': 2})
-    # (The first question, on the second step, may pause the env before a third.)
+                                  'wait_observation_subscribers': 3})
+    assert probe.wait_matched(statuses, timeout=STARTUP_S), env.log_text()[-2000:]
+    probe.subscribe(Image, topics.OBSERVATION, qos.FRAMES)
     assert statuses.wait_count(1, STARTUP_S), env.log_text()[-2000:]
     asked_on_screen = """(() => { const q = document.getElementById('question');
       return !q.hidden && q.dataset.stamp === window.frameStamp

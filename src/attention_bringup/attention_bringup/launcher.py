@@ -31,8 +31,8 @@ from attention_bringup.plan import (
     build_plan, chosen_domain, CONSOLE, Continuation, FOXGLOVE, LaunchPlan, parse_options,
     RECORDER, resumed_options, save_options)
 from attention_bringup.processes import (
-    cpu_seconds, exit_description, log_tail, node_environ, NodeGroup, resident_memory_kb,
-    run_graph)
+    cpu_seconds, exit_description, idle_this_process, log_tail, node_environ, NodeGroup,
+    resident_memory_kb, run_graph)
 from attention_bringup.progress import format_bar, ProgressTracker
 from attention_common.node_main import unblock_stop_signals
 from attention_common.run_files import (
@@ -151,6 +151,8 @@ class Launcher:
         """Start the nodes, watch the run, stop the nodes, write the run folder."""
         try:
             status, failed = self._start_nodes(group, monitor)
+            if status is None and self.plan.options.acting_first:
+                idle_this_process()  # off the acting path too, once every node is up
             if status is None:
                 status, failed = self._watch(group, monitor, writer)
             if status == 'completed':

@@ -11,7 +11,7 @@ from dataclasses import asdict, dataclass, field, fields, replace
 import datetime
 import json
 from pathlib import Path
-from typing import Dict, List, Optional, Sequence
+from typing import Dict, List, Optional, Sequence, Tuple
 
 from attention_bringup.graph import (
     base_params_files, CONDITIONS, DEFAULT_CONDITION, NODES, person_file)
@@ -173,6 +173,10 @@ class LaunchOptions:
     """Seconds without a new step after which the graph counts as stalled (not while paused)."""
     initial_model: Optional[str] = None
     """A trained run (its folder or checkpoint file) whose H the learner starts from."""
+    acting_first: bool = False
+    """Run every process off the acting path (``off_acting_path``) and the launcher in Linux's
+    idle scheduling class (SCHED_IDLE): env_node and tamer_node then take a core at once. Off
+    by default: an idle-class node gets no CPU while other work fills every core."""
 
     @property
     def records(self) -> bool:
@@ -301,6 +305,13 @@ def argument_parser() -> argparse.ArgumentParser:
     parser.add_argument('--foxglove-port', dest='foxglove_port', type=int, default=FOXGLOVE_PORT,
                         help=f'port of the Foxglove bridge (default {FOXGLOVE_PORT}; 0: any free '
                              'one)')
+    parser.add_argument('--acting-first', dest='acting_first', action='store_true',
+                        help='run the nodes off the acting path (feedback_node, saliency_node '
+                             'unless the learner acts on its images, the recorder, console and '
+                             'viewer) and the launcher in the idle scheduling class (Linux '
+                             'SCHED_IDLE), so env_node and tamer_node get a core at once: '
+                             'lower observation-to-action latency in lockstep; those nodes get '
+                             'no CPU while other work fills every core')
     parser.add_argument('--record', dest='record', action='store_true', default=None,
                         help='record the session as a rosbag2 bag with MCAP storage in the run '
                              "folder's bag/ (every topic, for ros2 bag, Foxglove and "
@@ -361,6 +372,8 @@ class NodeCommand:
     name: str
     argv: List[str]
     log_path: Path
+    idle: bool = False
+    """Start it in the idle scheduling class (``--acting-first``, Linux)."""
 
 
 @dataclass
@@ -464,6 +477,18 @@ def launcher_overrides(options: LaunchOptions, seed: int, run_dir: Path,
 def bag_dir_name(session: int = 1) -> str:
     """Return the bag folder of a session of a run: 'bag', then 'bag.session2', ..."""
     return BAG_DIR if session == 1 else f'{BAG_DIR}.session{session}'
+
+
+def off_acting_path(effective: Dict[str, NodeParams]) -> Tuple[str, ...]:
+    """
+    Name the processes no action waits for: all but env_node and tamer_node, and saliency_node.
+
+    saliency_node is on the path when the learner acts on its images (tamer_node
+    ``input_image`` 'saliency' or 'both'); otherwise the learner only learns from them.
+    """
+    acts_on_saliency = effective['tamer_node'].get('input_image', 'observation') != 'observation'
+    return tuple(name for name in ('feedback_node', 'saliency_node', RECORDER, CONSOLE, FOXGLOVE)
+                 if not (name == 'saliency_node' and acts_on_saliency))
 
 
 def free_bag_dir(run_dir: Path, session: int) -> Path:
@@ -577,6 +602,9 @@ def build_plan(options: LaunchOptions, bin_dir: Path, cwd: Path,
         argv += ['-p', f'port:={int(options.foxglove_port)}', '-p', f'task:={options.task}']
         commands.append(NodeCommand(FOXGLOVE, argv,
                                     run_dir / node_log(FOXGLOVE, continuation.session)))
+    if options.acting_first:
+        for command in commands:
+            command.idle = command.name in off_acting_path(effective)
     return LaunchPlan(options=options, run_dir=run_dir, seed=seed, params_files=all_files,
                       overrides=overrides, effective=effective, commands=commands,
                       continuation=continuation, bag_dir=bag_dir)

@@ -22,11 +22,14 @@ from attention_bringup.plan import NodeCommand
 from attention_common.isolation import isolated_environ, reserved_domain
 from attention_common.teardown_watchdog import DUMP_HEADER
 
-# argv: <launcher pid> <executable> <args...>. Exits if the launcher is already gone.
+# argv: <launcher pid> <'idle' or 'normal'> <executable> <args...>. Exits if the launcher is
+# already gone. 'idle': the idle scheduling class, which every thread of the node inherits.
 _DIE_WITH_PARENT_SHIM = (
     'import ctypes, os, signal, sys\n'
     'ctypes.CDLL(None).prctl(1, int(signal.SIGTERM))  # PR_SET_PDEATHSIG\n'
-    'sys.exit(1) if os.getppid() != int(sys.argv[1]) else os.execv(sys.argv[2], sys.argv[2:])\n'
+    "if sys.argv[2] == 'idle':\n"
+    '    os.sched_setscheduler(0, os.SCHED_IDLE, os.sched_param(0))\n'
+    'sys.exit(1) if os.getppid() != int(sys.argv[1]) else os.execv(sys.argv[3], sys.argv[3:])\n'
 )
 
 LAST_STOP_S = 10.0
@@ -73,11 +76,26 @@ def run_graph(prog: str, commands: Sequence[NodeCommand], chosen: Optional[int],
             return 2
 
 
-def dying_with_parent(argv: List[str]) -> List[str]:
-    """Return a command line that runs ``argv`` and gets SIGTERM when this process dies."""
+def dying_with_parent(argv: List[str], idle: bool = False) -> List[str]:
+    """
+    Return a command line that runs ``argv`` and gets SIGTERM when this process dies.
+
+    ``idle``: in the idle scheduling class (SCHED_IDLE: it runs only on a core nothing else
+    wants). Both are Linux's; elsewhere ``argv`` runs as it is.
+    """
     if not sys.platform.startswith('linux'):
         return list(argv)
-    return [sys.executable, '-I', '-c', _DIE_WITH_PARENT_SHIM, str(os.getpid())] + list(argv)
+    return ([sys.executable, '-I', '-c', _DIE_WITH_PARENT_SHIM, str(os.getpid()),
+             'idle' if idle else 'normal'] + list(argv))
+
+
+def idle_this_process() -> None:
+    """Put every thread of this process in the idle scheduling class (Linux; else nothing)."""
+    if not sys.platform.startswith('linux'):
+        return
+    for tid in os.listdir('/proc/self/task'):
+        with contextlib.suppress(ProcessLookupError):  # a thread that has just ended
+            os.sched_setscheduler(int(tid), os.SCHED_IDLE, os.sched_param(0))
 
 
 def exit_description(code: Optional[int]) -> str:
@@ -177,8 +195,8 @@ class NodeGroup:
         command.log_path.parent.mkdir(parents=True, exist_ok=True)
         log_file = open(command.log_path, 'wb')
         process = subprocess.Popen(
-            dying_with_parent(command.argv), stdin=subprocess.DEVNULL, stdout=log_file,
-            stderr=subprocess.STDOUT, env=self.env, process_group=0)
+            dying_with_parent(command.argv, command.idle), stdin=subprocess.DEVNULL,
+            stdout=log_file, stderr=subprocess.STDOUT, env=self.env, process_group=0)
         node = NodeProcess(command, process, log_file)
         self.nodes.append(node)
         return node
