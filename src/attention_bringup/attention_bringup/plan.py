@@ -481,9 +481,9 @@ def bag_dir_name(session: int = 1) -> str:
 
 def off_acting_path(effective: Dict[str, NodeParams]) -> Tuple[str, ...]:
     """
-    Name the processes no action waits for: all but env_node and tamer_node, and saliency_node.
+    Name the processes no action waits for: every one but env_node and tamer_node.
 
-    saliency_node is on the path when the learner acts on its images (tamer_node
+    saliency_node is the exception when the learner acts on its images (tamer_node
     ``input_image`` 'saliency' or 'both'); otherwise the learner only learns from them.
     """
     acts_on_saliency = effective['tamer_node'].get('input_image', 'observation') != 'observation'
