@@ -603,8 +603,9 @@ def build_plan(options: LaunchOptions, bin_dir: Path, cwd: Path,
         commands.append(NodeCommand(FOXGLOVE, argv,
                                     run_dir / node_log(FOXGLOVE, continuation.session)))
     if options.acting_first:
+        idle = off_acting_path(effective)
         for command in commands:
-            command.idle = command.name in off_acting_path(effective)
+            command.idle = command.name in idle
     return LaunchPlan(options=options, run_dir=run_dir, seed=seed, params_files=all_files,
                       overrides=overrides, effective=effective, commands=commands,
                       continuation=continuation, bag_dir=bag_dir)
